@@ -1,0 +1,39 @@
+"""smplcore: the SMPL family of body models (SMPL, SMPL+H, SMPL-X, MANO, FLAME), fast, exact and safe.
+
+``import smplcore`` needs only NumPy and SciPy. The PyTorch front end (``smplcore.create``,
+``smplcore.SMPL``, ...) is imported on first use.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from smplcore.errors import ModelFileError, ShapeError
+from smplcore.io import ModelData, convert, load_model, save_npz
+from smplcore.numpy_model import BodyModel, BodyOutput
+
+__version__ = "0.1.0"
+
+_TORCH_NAMES = {
+    "create", "build_layer", "SMPL", "SMPLH", "SMPLX", "MANO", "FLAME", "SMPLLayer", "SMPLHLayer", "SMPLXLayer",
+    "MANOLayer", "FLAMELayer", "OpenModel", "ModelOutput", "SMPLOutput", "SMPLHOutput", "SMPLXOutput",
+    "MANOOutput", "FLAMEOutput",
+}
+
+__all__ = ["BodyModel", "BodyOutput", "ModelData", "ModelFileError", "ShapeError", "convert", "install_as_smplx",
+           "load_model", "save_npz", *sorted(_TORCH_NAMES)]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _TORCH_NAMES:
+        from smplcore.torch import models
+
+        return getattr(models, name)
+    raise AttributeError(f"module 'smplcore' has no attribute {name!r}")
+
+
+def install_as_smplx() -> None:
+    """Register smplcore under the name ``smplx`` (submodules included), for unmodified smplx code."""
+    from smplcore.compat import install_as_smplx as _install
+
+    _install()

@@ -1,0 +1,9 @@
+"""The math of the SMPL family, written once for NumPy and PyTorch."""
+
+from smplcore.engine.body import BodyArrays, forward, rest_joints, shaped_vertices
+from smplcore.engine.landmarks import barycentric_points, contour_rows
+from smplcore.engine.rotations import pose_features, rodrigues
+from smplcore.engine.skeleton import KinematicTree, skin, skinning_transforms, world_transforms
+
+__all__ = ["BodyArrays", "KinematicTree", "barycentric_points", "contour_rows", "forward", "pose_features",
+           "rest_joints", "rodrigues", "shaped_vertices", "skin", "skinning_transforms", "world_transforms"]

@@ -1,0 +1,42 @@
+"""The array namespace the engine runs on: NumPy or PyTorch, told from the arrays themselves.
+
+The engine uses only what both namespaces spell the same way (``einsum``, ``concat``, ``stack``,
+``where``, ``sqrt``, ``sin``, ``cos``, ``clip``, ``round``, ``@``, ``.reshape``, ``.mT``, ``axis=`` and
+``keepdims=``), plus the few helpers below for the rest. Torch is never imported here.
+"""
+
+from __future__ import annotations
+
+import sys
+from typing import Any
+
+import numpy as np
+
+
+def is_torch(x: Any) -> bool:
+    torch = sys.modules.get("torch")
+    return torch is not None and isinstance(x, torch.Tensor)
+
+
+def namespace(x: Any) -> Any:
+    """``torch`` for a torch tensor, else ``numpy``."""
+    return sys.modules["torch"] if is_torch(x) else np
+
+
+def eye(n: int, like: Any) -> Any:
+    """An ``n`` × ``n`` identity with the dtype (and device) of ``like``."""
+    if is_torch(like):
+        return sys.modules["torch"].eye(n, dtype=like.dtype, device=like.device)
+    return np.eye(n, dtype=like.dtype)
+
+
+def atan2(y: Any, x: Any) -> Any:
+    return sys.modules["torch"].atan2(y, x) if is_torch(y) else np.arctan2(y, x)
+
+
+def index(idx: Any, like: Any) -> Any:
+    """Integer index array in the namespace (and on the device) of ``like``."""
+    if is_torch(like):
+        torch = sys.modules["torch"]
+        return torch.as_tensor(np.asarray(idx, dtype=np.int64), device=like.device)
+    return np.asarray(idx, dtype=np.int64)

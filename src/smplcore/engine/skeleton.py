@@ -1,0 +1,114 @@
+"""The kinematic chain: local joint rotations to world transforms, computed level by level."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from smplcore.engine.backend import namespace
+
+
+@dataclass(frozen=True)
+class KinematicTree:
+    """A joint tree split into depth levels, so that each level is one batched matrix product.
+
+    Attributes
+    ----------
+    parents : parent of each joint, -1 for the root.
+    levels : joint indices at each depth (``levels[0]`` holds the root).
+    parent_slots : for each level after the first, the position of each joint's parent inside the
+        previous level.
+    order_inverse : position of each joint in the concatenation of all levels.
+    """
+
+    parents: tuple[int, ...]
+    levels: tuple[tuple[int, ...], ...]
+    parent_slots: tuple[tuple[int, ...], ...]
+    order_inverse: tuple[int, ...]
+
+    @classmethod
+    def from_parents(cls, parents: Sequence[int]) -> "KinematicTree":
+        parents = tuple(int(p) for p in parents)
+        if not parents or parents[0] != -1:
+            raise ValueError("parents: the first joint must be the root (parent -1)")
+        depth = [0] * len(parents)
+        for j, p in enumerate(parents[1:], start=1):
+            if not 0 <= p < j:
+                raise ValueError(f"parents: joint {j} has parent {p}; parents must come before their children")
+            depth[j] = depth[p] + 1
+        levels = tuple(tuple(j for j in range(len(parents)) if depth[j] == d) for d in range(max(depth) + 1))
+        slots = tuple(tuple(levels[d - 1].index(parents[j]) for j in levels[d]) for d in range(1, len(levels)))
+        order = [j for level in levels for j in level]
+        inverse = tuple(int(i) for i in np.argsort(order))
+        return cls(parents, levels, slots, inverse)
+
+    def chain_to_root(self, joint: int) -> list[int]:
+        """``joint``, its parent, ..., the root."""
+        chain = []
+        while joint != -1:
+            chain.append(joint)
+            joint = self.parents[joint]
+        return chain
+
+
+def world_transforms(rotmats: Any, joints: Any, tree: KinematicTree) -> tuple[Any, Any]:
+    """Compose local rotations along the tree.
+
+    Parameters
+    ----------
+    rotmats : (B, J, 3, 3) local rotation of each joint.
+    joints : (B, J, 3) rest-pose joint positions.
+    tree : the kinematic tree.
+
+    Returns
+    -------
+    world_rot : (B, J, 3, 3) rotation of each joint in the world.
+    world_pos : (B, J, 3) posed joint positions.
+    """
+    xp = namespace(rotmats)
+    parents = list(tree.parents)
+    offsets = joints[:, 1:] - joints[:, parents[1:]]
+    offsets = xp.concat([joints[:, :1], offsets], axis=1)
+    level_rot = [rotmats[:, list(tree.levels[0])]]
+    level_pos = [offsets[:, list(tree.levels[0])]]
+    for level, slots in zip(tree.levels[1:], tree.parent_slots):
+        idx, slots = list(level), list(slots)
+        parent_rot = level_rot[-1][:, slots]
+        level_rot.append(parent_rot @ rotmats[:, idx])
+        level_pos.append((parent_rot @ offsets[:, idx, :, None])[..., 0] + level_pos[-1][:, slots])
+    inverse = list(tree.order_inverse)
+    world_rot = xp.concat(level_rot, axis=1)[:, inverse]
+    world_pos = xp.concat(level_pos, axis=1)[:, inverse]
+    return world_rot, world_pos
+
+
+def skinning_transforms(world_rot: Any, world_pos: Any, rest_joints: Any) -> Any:
+    """Per-joint transforms relative to the rest pose, as (B, J, 12): 9 rotation entries, then translation.
+
+    A rest-pose point ``v`` near joint ``j`` moves to ``world_rot[j] @ (v - rest_joints[j]) + world_pos[j]``.
+    """
+    xp = namespace(world_rot)
+    batch, num_joints = world_rot.shape[:2]
+    translation = world_pos - (world_rot @ rest_joints[..., None])[..., 0]
+    return xp.concat([world_rot.reshape(batch, num_joints, 9), translation], axis=-1)
+
+
+def skin(vertices: Any, transforms: Any, weights: Any) -> Any:
+    """Linear blend skinning.
+
+    Parameters
+    ----------
+    vertices : (B, V, 3) rest-pose vertices (shaped, with pose correctives).
+    transforms : (B, J, 12) from :func:`skinning_transforms`.
+    weights : (V, J) skinning weights.
+
+    Returns
+    -------
+    (B, V, 3) posed vertices.
+    """
+    blended = weights @ transforms  # (B, V, 12)
+    batch, num_verts = blended.shape[:2]
+    rot = blended[..., :9].reshape(batch, num_verts, 3, 3)
+    return (rot @ vertices[..., None])[..., 0] + blended[..., 9:]

@@ -1,0 +1,66 @@
+"""Finding the model file that ``create(model_path, model_type=..., gender=..., ext=...)`` means."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from smplcore.errors import ModelFileError
+from smplcore.family.specs import get_spec
+
+OPEN_MODEL_PATH = Path(__file__).resolve().parents[1] / "data" / "open_model.npz"
+
+
+def locate_model_file(model_path: str | Path | None, model_type: str | None = None, *, gender: str = "neutral",
+                      ext: str = "pkl", is_rhand: bool = True) -> Path:
+    """The file to load.
+
+    ``model_path`` may be a file (used as is), or a folder holding the official file names either
+    directly or in a sub-folder named after the model type (``models/smplx/SMPLX_NEUTRAL.npz``), as
+    smplx lays them out. ``ext`` is honoured for every model type. ``model_type="open"`` without a
+    path gives the packaged open model.
+    """
+    if model_path is None or str(model_path) == "":
+        if model_type is not None and get_spec(model_type).model_type == "open":
+            return OPEN_MODEL_PATH
+        raise ValueError("model_path: a model file or folder is needed (or model_type='open' for the "
+                         "packaged open model)")
+    path = Path(model_path).expanduser()
+    if path.is_file():
+        return path
+    if not path.exists():
+        raise ModelFileError(path, "no such file or folder")
+    if model_type is None:
+        raise ValueError(f"model_type: {path} is a folder; say which model type to load from it")
+    spec = get_spec(model_type)
+    if spec.model_type == "open":
+        return OPEN_MODEL_PATH
+    folder = path / spec.model_type if (path / spec.model_type).is_dir() else path
+    ext = ext.lstrip(".").lower()
+    if ext not in ("pkl", "npz"):
+        raise ValueError(f"ext: expected 'pkl' or 'npz', got {ext!r}")
+    stem = spec.file_stem.format(GENDER=str(gender).upper(), SIDE="RIGHT" if is_rhand else "LEFT")
+    candidates = [folder / f"{stem}.{ext}"]
+    if spec.model_type == "flame":
+        candidates.append(folder / f"generic_model.{ext}")
+    for candidate in candidates:
+        if candidate.is_file():
+            return candidate
+    present = sorted(p.name for p in folder.iterdir() if p.suffix in (".pkl", ".npz"))
+    raise ModelFileError(candidates[0], f"not found (model_type={spec.model_type!r}, gender={gender!r}, "
+                                        f"ext={ext!r}); model files in {folder}: {present or 'none'}")
+
+
+def read_model(model_path: str | Path | None, model_type: str | None = None, *, gender: str = "neutral",
+               ext: str = "pkl", is_rhand: bool = True):
+    """Locate and load a model: :func:`locate_model_file` then :func:`smplcore.io.load_model`.
+
+    For a folder, ``gender`` (and for MANO ``is_rhand``) choose the file and are recorded; for a
+    file, they are taken from its name where it states them.
+    """
+    from smplcore.io.model_files import load_model
+
+    path = locate_model_file(model_path, model_type, gender=gender, ext=ext, is_rhand=is_rhand)
+    given_file = model_path is not None and str(model_path) != "" and Path(model_path).is_file()
+    if model_type is not None and get_spec(model_type).model_type == "mano" and not given_file:
+        gender = "right" if is_rhand else "left"
+    return load_model(path, model_type=model_type, gender=None if given_file else gender)

@@ -1,0 +1,410 @@
+"""What both front ends share: model options resolved once, and one evaluation over any namespace.
+
+:class:`ModelSetup` turns a :class:`ModelData` and smplx's constructor options (``num_betas``,
+``use_pca``, ``flat_hand_mean``, ``use_face_contour``, ...) into plain NumPy constants.
+:func:`evaluate` takes keyword parameters in NumPy or torch and returns the outputs; the torch
+modules and the NumPy :class:`~smplcore.numpy_model.BodyModel` are thin layers over these two.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from smplcore.engine import body as engine
+from smplcore.engine.backend import eye, index, namespace
+from smplcore.engine.landmarks import barycentric_points, contour_rows
+from smplcore.engine.rotations import rodrigues
+from smplcore.errors import ModelFileError, ShapeError
+from smplcore.family import names
+from smplcore.family.specs import FamilySpec, extra_joint_vertex_ids, get_spec
+from smplcore.io.model_data import ModelData
+
+_warned: set[tuple[str, str]] = set()
+
+
+def warn_once(owner: str, message: str, key: str | None = None) -> None:
+    """Warn with ``message`` once per ``(owner, key)`` in this process."""
+    token = (owner, key or message)
+    if token not in _warned:
+        _warned.add(token)
+        warnings.warn(message, stacklevel=4)
+
+
+@dataclass
+class ModelSetup:
+    """A model with its options applied. All arrays are NumPy; nothing here depends on torch.
+
+    Attributes
+    ----------
+    spec, data : the family spec and the file's arrays.
+    num_betas, num_expression_coeffs : coefficients the model takes (after capping to the file).
+    shapedirs : (V, 3, num_betas [+1 with a kid template]) shape basis.
+    exprdirs : (V, 3, num_expression_coeffs) expression basis (empty for models without one).
+    hand_components : PCA basis (C, 45) per hand block, only for blocks given as PCA coefficients.
+    pose_mean : (3 J,) axis-angle added to the full pose (the mean hand pose unless flat).
+    extra_joint_ids / extra_joint_names : vertices appended to the joints.
+    use_face_contour : append the 17 dynamic contour landmarks.
+    """
+
+    spec: FamilySpec
+    data: ModelData
+    num_betas: int
+    num_expression_coeffs: int
+    shapedirs: np.ndarray
+    exprdirs: np.ndarray
+    use_pca: bool
+    num_pca_comps: int
+    flat_hand_mean: bool
+    hand_components: dict[str, np.ndarray]
+    hand_means: dict[str, np.ndarray]
+    pose_mean: np.ndarray
+    extra_joint_ids: list[int]
+    extra_joint_names: list[str]
+    use_face_contour: bool
+    neck_chain: list[int] = field(default_factory=list)
+    keypoints: "Keypoints | None" = None
+
+    def __post_init__(self) -> None:
+        if self.keypoints is None:
+            self.keypoints = Keypoints.build(self.data, self.extra_joint_ids, self.spec.landmarks,
+                                             self.use_face_contour)
+
+    @classmethod
+    def build(cls, data: ModelData, *, num_betas: int = 10, num_expression_coeffs: int = 10,
+              use_pca: bool = True, num_pca_comps: int = 6, flat_hand_mean: bool = False,
+              use_face_contour: bool = False, use_hands: bool = True, use_feet_keypoints: bool = True,
+              vertex_ids: dict | None = None, age: str = "adult", kid_template_path: str | Path | None = None,
+              v_template: np.ndarray | None = None, owner: str = "") -> "ModelSetup":
+        spec = get_spec(data.model_type)
+        owner = owner or spec.display_name
+        _check_count("num_betas", num_betas)
+        if num_betas > data.num_betas:
+            warn_once(owner, f"{owner}: num_betas={num_betas} asked, but {data.source} holds {data.num_betas} "
+                             f"shape components; using {data.num_betas}", key=f"betas{num_betas}-{data.source}")
+            num_betas = data.num_betas
+        shapedirs = np.asarray(data.shapedirs[:, :, :num_betas])
+        if v_template is not None:
+            v_template = np.asarray(v_template, dtype=np.float64)
+            if v_template.shape != data.v_template.shape:
+                raise ShapeError(f"v_template: expected shape {data.v_template.shape}, got {v_template.shape}")
+            data = data.replace(v_template=v_template)
+        if age == "kid":
+            shapedirs, num_betas = _with_kid_component(data, shapedirs, kid_template_path), num_betas + 1
+        elif age != "adult":
+            raise ValueError(f"age: expected 'adult' or 'kid', got {age!r}")
+
+        exprdirs = np.zeros((data.num_vertices, 3, 0))
+        if spec.has_expression:
+            _check_count("num_expression_coeffs", num_expression_coeffs)
+            held = data.num_expression_coeffs
+            if num_expression_coeffs > held:
+                warn_once(owner, f"{owner}: num_expression_coeffs={num_expression_coeffs} asked, but {data.source} "
+                                 f"holds {held}; using {held}", key=f"expr{num_expression_coeffs}-{data.source}")
+                num_expression_coeffs = held
+            exprdirs = np.asarray(data.exprdirs[:, :, :num_expression_coeffs])
+        else:
+            num_expression_coeffs = 0
+
+        if spec.model_type == "mano" and num_pca_comps == 45:
+            use_pca = False  # as smplx: 45 components are the full space, given as axis-angle
+        hand_components, hand_means = {}, {}
+        for block in spec.hand_blocks:
+            side = data.gender if block.hand == "self" else block.hand
+            comps = getattr(data, f"hands_components_{side}")
+            mean = getattr(data, f"hands_mean_{side}")
+            if use_pca:
+                if comps is None:
+                    raise ModelFileError(data.source, f"use_pca=True needs the {side} hand's PCA components, which "
+                                                      "this file does not have; pass use_pca=False",
+                                         key="hands_components")
+                if not 1 <= num_pca_comps <= comps.shape[0]:
+                    raise ValueError(f"num_pca_comps: expected 1..{comps.shape[0]}, got {num_pca_comps}")
+                hand_components[block.name] = np.asarray(comps[:num_pca_comps])
+            if mean is None and not flat_hand_mean:
+                warn_once(owner, f"{owner}: {data.source} has no mean hand pose; using a flat hand mean",
+                          key=f"nomean-{data.source}")
+            hand_means[block.name] = np.zeros(45) if (flat_hand_mean or mean is None) else np.asarray(mean)
+        offsets = spec.block_offsets()
+        pose_mean = np.zeros((spec.num_joints, 3))
+        for name, mean in hand_means.items():
+            start, stop = offsets[name]
+            pose_mean[start:stop] = mean.reshape(-1, 3)
+
+        extra_names, extra_ids = [], []
+        if spec.extra_joints:
+            ids = vertex_ids or spec.vertex_ids or {
+                names.EXTRA_JOINT_KEYS[n]: i for n, i in zip(data.extra_joint_names, data.extra_joint_vertex_ids)}
+            if ids:
+                extra_names, extra_ids = extra_joint_vertex_ids(ids, use_hands, use_feet_keypoints)
+
+        if use_face_contour and (not spec.landmarks or data.dynamic_lmk_faces_idx is None):
+            raise ModelFileError(data.source, f"use_face_contour=True needs the dynamic face contour embedding, "
+                                              f"which this {spec.display_name} model does not have",
+                                 key="dynamic_lmk_faces_idx")
+        if spec.landmarks and data.lmk_faces_idx is None:
+            where = "flame_static_embedding.pkl next to the model file" if spec.model_type == "flame" else "the file"
+            raise ModelFileError(data.source, f"{spec.display_name} needs static landmark embeddings ({where})",
+                                 key="lmk_faces_idx")
+        neck_chain = []
+        if use_face_contour:
+            neck_chain = engine.KinematicTree.from_parents(data.parents).chain_to_root(spec.neck_index)
+        return cls(spec, data, num_betas, num_expression_coeffs, shapedirs, exprdirs, use_pca, num_pca_comps,
+                   flat_hand_mean, hand_components, hand_means, pose_mean.reshape(-1), extra_ids, extra_names,
+                   use_face_contour, neck_chain)
+
+    def body_arrays(self, convert=np.asarray) -> engine.BodyArrays:
+        """The engine's arrays (shape and expression bases concatenated once, here)."""
+        d = self.data
+        dirs = np.concatenate([self.shapedirs, self.exprdirs], axis=-1)
+        return engine.BodyArrays.build(d.v_template, dirs, d.J_regressor, d.posedirs, d.weights, d.parents,
+                                       convert=convert)
+
+    @property
+    def output_joint_names(self) -> list[str]:
+        """Names of the output joints, in order."""
+        out = list(self.spec.joint_names if self.data.joint_names is None else self.data.joint_names)
+        out += self.extra_joint_names
+        if self.spec.landmarks:
+            out += list(names.FACE_LANDMARKS[: len(self.data.lmk_faces_idx)])
+            if self.use_face_contour:
+                out += list(names.FACE_CONTOUR)
+        return out
+
+    def pose_width(self, block_name: str) -> int:
+        """Values per body of a pose block in axis-angle mode (PCA coefficients for PCA hands)."""
+        if block_name in self.hand_components:
+            return self.hand_components[block_name].shape[0]
+        return 3 * self.spec.block(block_name).num_joints
+
+
+def _check_count(name: str, value: int) -> None:
+    if not isinstance(value, (int, np.integer)) or value < 0:
+        raise ValueError(f"{name}: expected a non-negative integer, got {value!r}")
+
+
+def _with_kid_component(data: ModelData, shapedirs: np.ndarray, kid_template_path) -> np.ndarray:
+    """Append the kid template's offset from the adult template as one more shape component."""
+    if not kid_template_path:
+        raise ValueError("kid_template_path: age='kid' needs the path of the kid template (.npy)")
+    path = Path(kid_template_path)
+    try:
+        kid = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise ModelFileError(path, f"cannot read the kid template ({exc})") from None
+    if kid.shape != data.v_template.shape:
+        raise ModelFileError(path, f"expected shape {data.v_template.shape}, found {kid.shape}")
+    kid = kid - kid.mean(axis=0)
+    return np.concatenate([shapedirs, (kid - data.v_template)[:, :, None]], axis=2)
+
+
+# --------------------------------------------------------------------------------------------------
+# Evaluation
+
+
+def batch_of(params: dict[str, Any]) -> int:
+    """The batch size of a call: the largest leading size among the given parameters."""
+    sizes = {name: value.shape[0] for name, value in params.items() if value is not None and value.ndim > 1}
+    batch = max(sizes.values(), default=1)
+    for name, size in sizes.items():
+        if size not in (1, batch):
+            raise ShapeError(f"{name}: batch size {size} does not match the batch size {batch} of the other "
+                             f"parameters (sizes: {sizes}); give 1 or {batch}")
+    return batch
+
+
+def _rows(name: str, value: Any, batch: int, width: int, *, allow_narrower: bool = False) -> Any:
+    """``value`` as (batch, width): 1-D becomes batch 1, batch 1 broadcasts, narrower coefficients pad."""
+    xp = namespace(value)
+    if value.ndim == 1:
+        value = value[None]
+    if value.ndim != 2:
+        value = value.reshape(value.shape[0], -1)
+    n = value.shape[1]
+    if n != width and not (allow_narrower and n < width):
+        expected = f"(B, {'<=' if allow_narrower else ''}{width})"
+        raise ShapeError(f"{name}: expected shape {expected}, got {tuple(value.shape)}")
+    if n < width:
+        pad = xp.zeros_like(value[:, :1]) * 0
+        value = xp.concat([value, xp.concat([pad] * (width - n), axis=1)], axis=1)
+    if value.shape[0] != batch:
+        value = xp.broadcast_to(value, (batch, width))
+    return value
+
+
+def _rotmat_rows(name: str, value: Any, batch: int, joints: int) -> Any:
+    """``value`` as (batch, joints, 3, 3) from (B, n, 3, 3), (B, 9 n) or, for one joint, (B, 3, 3)."""
+    xp = namespace(value)
+    if value.ndim == 3 and joints == 1 and tuple(value.shape[1:]) == (3, 3):
+        value = value[:, None]
+    elif value.ndim == 2 and value.shape[1] == 9 * joints:
+        value = value.reshape(value.shape[0], joints, 3, 3)
+    if value.ndim != 4 or tuple(value.shape[1:]) != (joints, 3, 3):
+        raise ShapeError(f"{name}: expected rotation matrices of shape (B, {joints}, 3, 3), got {tuple(value.shape)}")
+    if value.shape[0] != batch:
+        value = xp.broadcast_to(value, (batch, joints, 3, 3))
+    return value
+
+
+def evaluate(setup: ModelSetup, arrays: engine.BodyArrays, params: dict[str, Any], *,
+             rotation_matrices: bool = False, vertices: bool = True, like: Any = None) -> dict[str, Any]:
+    """Run the model.
+
+    Parameters
+    ----------
+    setup : the model with its options.
+    arrays : ``setup.body_arrays()`` in the namespace of the parameters.
+    params : ``betas``, ``expression``, ``transl`` and one entry per pose block; None entries are
+        zero (identity rotations). Axis-angle blocks are (B, 3 n) or (B, n, 3); PCA hand blocks
+        (B, C); with ``rotation_matrices`` every block is (B, n, 3, 3).
+    rotation_matrices : the pose blocks are rotation matrices (no PCA, no mean pose added).
+    vertices : build the mesh; without it only the joints (extra joints and landmarks included)
+        are computed, from the few vertices they need.
+    like : an array giving namespace, dtype and device when every parameter is None.
+
+    Returns
+    -------
+    dict with ``vertices`` (B, V, 3) or None, ``joints`` (B, J', 3) before translation, ``transl``
+    (B, 3) or None, ``full_pose`` ((B, 3 J) axis-angle or (B, J, 3, 3) matrices), ``betas``,
+    ``expression``, ``rotmats`` and the pose blocks as used (hand PCA turned into axis-angle).
+    """
+    spec = setup.spec
+    given = {k: v for k, v in params.items() if v is not None}
+    ref = next(iter(given.values()), like if like is not None else arrays.v_template)
+    xp = namespace(ref)
+    batch = batch_of({k: (v if v.ndim > 1 else v[None]) for k, v in given.items()})
+    zeros = xp.zeros_like(arrays.v_template[:1, :1]) * 0  # (1, 1) in the model's dtype/device
+
+    def coefficients(name: str, width: int) -> Any:
+        if width == 0:
+            return xp.broadcast_to(zeros[:, :0], (batch, 0))
+        value = given.get(name)
+        if value is None:
+            return xp.broadcast_to(zeros, (batch, width))
+        return _rows(name, value, batch, width, allow_narrower=True)
+
+    betas = coefficients("betas", setup.num_betas)
+    expression = coefficients("expression", setup.num_expression_coeffs) if spec.has_expression else None
+    coeffs = betas if expression is None else xp.concat([betas, expression], axis=1)
+
+    out: dict[str, Any] = {"betas": betas, "expression": expression}
+    if rotation_matrices:
+        identity = eye(3, zeros)
+        blocks = []
+        for block in spec.pose_blocks:
+            value = given.get(block.name)
+            if value is None:
+                value = xp.broadcast_to(identity, (batch, block.num_joints, 3, 3))
+            else:
+                value = _rotmat_rows(block.name, value, batch, block.num_joints)
+            out[block.name] = value
+            blocks.append(value)
+        rotmats = xp.concat(blocks, axis=1)
+        out["full_pose"] = rotmats
+    else:
+        blocks = []
+        for block in spec.pose_blocks:
+            value = given.get(block.name)
+            if value is None:
+                value = xp.broadcast_to(zeros, (batch, 3 * block.num_joints))
+            else:
+                value = _rows(block.name, value, batch, setup.pose_width(block.name))
+                if block.name in setup.hand_components:
+                    value = value @ _const(setup.hand_components[block.name], zeros)
+            out[block.name] = value
+            blocks.append(value)
+        full_pose = xp.concat(blocks, axis=1)
+        if np.any(setup.pose_mean):
+            full_pose = full_pose + _const(setup.pose_mean, zeros)
+        out["full_pose"] = full_pose
+        rotmats = rodrigues(full_pose.reshape(batch, -1, 3))
+    out["rotmats"] = rotmats
+
+    verts, joints, transforms = engine.forward(coeffs, rotmats, arrays, vertices=vertices)
+    parts = [joints]
+    if setup.keypoints.ids.size:
+        parts += _keypoints(setup, arrays, coeffs, rotmats, transforms, verts)
+    out["joints"] = xp.concat(parts, axis=1) if len(parts) > 1 else joints
+    out["vertices"] = verts
+    transl = given.get("transl")
+    out["transl"] = None if transl is None else _rows("transl", transl, batch, 3)
+    return out
+
+
+def _const(array: np.ndarray, like: Any) -> Any:
+    """A NumPy constant in the namespace, dtype and device of ``like``."""
+    if namespace(like) is np:
+        return np.asarray(array, dtype=like.dtype)
+    import torch
+
+    return torch.tensor(np.asarray(array), dtype=like.dtype, device=like.device)
+
+
+@dataclass(frozen=True)
+class Keypoints:
+    """Vertices that the extra joints and landmarks read, numbered globally and within their subset.
+
+    ``corners``/``contour_corners`` hold the three vertices of each landmark's face: (L, 3) and
+    (79, 17, 3). The ``local_*`` fields number them within ``ids``, so that the joints-only path
+    poses just those vertices.
+    """
+
+    ids: np.ndarray
+    extra: np.ndarray
+    corners: np.ndarray
+    contour_corners: np.ndarray
+    local_extra: np.ndarray
+    local_corners: np.ndarray
+    local_contour_corners: np.ndarray
+
+    @classmethod
+    def build(cls, data: ModelData, extra_ids: list[int], landmarks: bool, contour: bool) -> "Keypoints":
+        extra = np.asarray(extra_ids, dtype=np.int64)
+        corners = data.faces[data.lmk_faces_idx] if landmarks else np.zeros((0, 3), np.int64)
+        contour_corners = (data.faces[data.dynamic_lmk_faces_idx] if contour
+                           else np.zeros((79, 0, 3), np.int64))
+        ids, inverse = np.unique(np.concatenate([extra, corners.ravel(), contour_corners.ravel()]),
+                                 return_inverse=True)
+        n1, n2 = extra.size, extra.size + corners.size
+        return cls(ids, extra, corners, contour_corners, inverse[:n1], inverse[n1:n2].reshape(corners.shape),
+                   inverse[n2:].reshape(contour_corners.shape))
+
+
+def _keypoints(setup: ModelSetup, arrays: engine.BodyArrays, coeffs: Any, rotmats: Any, transforms: Any,
+               verts: Any | None) -> list[Any]:
+    """Extra vertex joints, static landmarks and the dynamic contour, in smplx's order."""
+    kp, d = setup.keypoints, setup.data
+    if verts is None:  # joints only: pose just the vertices the keypoints use
+        verts = _pose_vertex_subset(coeffs, rotmats, transforms, arrays, kp.ids)
+        extra, corners, contour = kp.local_extra, kp.local_corners, kp.local_contour_corners
+    else:
+        extra, corners, contour = kp.extra, kp.corners, kp.contour_corners
+    out = []
+    if extra.size:
+        out.append(verts[:, index(extra, verts)])
+    if setup.spec.landmarks:
+        out.append(barycentric_points(verts, index(corners, verts), _const(d.lmk_bary_coords, verts)))
+        if setup.use_face_contour:
+            rows = contour_rows(rotmats, setup.neck_chain)
+            dyn_bary = _const(d.dynamic_lmk_bary_coords, verts)[rows]
+            out.append(barycentric_points(verts, index(contour, verts)[rows], dyn_bary))
+    return out
+
+
+def _pose_vertex_subset(coeffs: Any, rotmats: Any, transforms: Any, arrays: engine.BodyArrays,
+                        ids: np.ndarray) -> Any:
+    """(B, len(ids), 3) posed vertices ``ids`` only."""
+    from smplcore.engine.rotations import pose_features
+    from smplcore.engine.skeleton import skin
+
+    rows = index(ids, arrays.weights)
+    cols = index((ids[:, None] * 3 + np.arange(3)).reshape(-1), arrays.weights)
+    batch = coeffs.shape[0]
+    v = arrays.v_template[rows] + (coeffs @ arrays.shape_basis[:, cols]).reshape(batch, -1, 3)
+    if arrays.pose_basis is not None:
+        v = v + (pose_features(rotmats) @ arrays.pose_basis[:, cols]).reshape(v.shape)
+    return skin(v, transforms, arrays.weights[rows])

@@ -1,0 +1,115 @@
+"""The NumPy front end: every model of the family with NumPy in and out, no torch needed."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from smplcore.io.locate import read_model
+from smplcore.io.model_data import ModelData
+from smplcore.model_setup import ModelSetup, evaluate, warn_once
+
+
+@dataclass
+class BodyOutput:
+    """Result of :meth:`BodyModel.__call__` (NumPy arrays, batch first).
+
+    ``vertices`` (B, V, 3) (None with ``return_verts=False``), ``joints`` (B, J', 3) with extra joints
+    and landmarks, ``full_pose`` (B, 3 J) axis-angle or (B, J, 3, 3) with rotation matrices,
+    ``rotmats`` (B, J, 3, 3), ``betas``, ``expression``, ``transl`` and the pose blocks as used.
+    """
+
+    vertices: np.ndarray | None
+    joints: np.ndarray
+    full_pose: np.ndarray
+    rotmats: np.ndarray
+    betas: np.ndarray
+    expression: np.ndarray | None = None
+    transl: np.ndarray | None = None
+    pose: dict[str, np.ndarray] | None = None
+
+
+class BodyModel:
+    """A body model of the SMPL family evaluated with NumPy.
+
+    Parameters
+    ----------
+    model_path : model file or folder (as for :func:`smplcore.create`); None with
+        ``model_type="open"`` for the packaged open model.
+    model_type : ``smpl``, ``smplh``, ``smplx``, ``mano``, ``flame`` or ``open``; taken from the file
+        when a file is given.
+    gender, ext, num_betas, num_expression_coeffs, use_pca, num_pca_comps, flat_hand_mean,
+    use_face_contour, use_hands, use_feet_keypoints, age, kid_template_path, is_rhand :
+        as in smplx.
+    dtype : float32 (default) or float64.
+
+    Examples
+    --------
+    >>> model = BodyModel(model_type="open")
+    >>> out = model(betas=np.zeros((2, 10)), body_pose=np.zeros((2, 69)))
+    >>> out.vertices.shape[0], out.joints.shape[1]
+    (2, 45)
+    """
+
+    def __init__(self, model_path: str | Path | None = None, model_type: str | None = None, *,
+                 gender: str = "neutral", ext: str = "pkl", dtype: Any = np.float32, is_rhand: bool = True,
+                 data: ModelData | None = None, **options: Any) -> None:
+        if data is None:
+            data = read_model(model_path, model_type, gender=gender, ext=ext, is_rhand=is_rhand)
+        known = {"num_betas", "num_expression_coeffs", "use_pca", "num_pca_comps", "flat_hand_mean",
+                 "use_face_contour", "use_hands", "use_feet_keypoints", "vertex_ids", "age", "kid_template_path",
+                 "v_template"}
+        for name in sorted(set(options) - known):
+            warn_once("BodyModel", f"BodyModel: ignoring unknown keyword argument {name!r}", key=name)
+        self.dtype = np.dtype(dtype)
+        if self.dtype not in (np.float32, np.float64):
+            raise ValueError(f"dtype: expected float32 or float64, got {self.dtype}")
+        self.setup = ModelSetup.build(data, owner="BodyModel", **{k: v for k, v in options.items() if k in known})
+        self.arrays = self.setup.body_arrays(lambda a: np.ascontiguousarray(a, dtype=self.dtype))
+        self.faces = np.asarray(data.faces)
+
+    @property
+    def model_type(self) -> str:
+        return self.setup.spec.model_type
+
+    @property
+    def num_betas(self) -> int:
+        return self.setup.num_betas
+
+    @property
+    def num_expression_coeffs(self) -> int:
+        return self.setup.num_expression_coeffs
+
+    @property
+    def joint_names(self) -> list[str]:
+        """Names of ``output.joints``, in order."""
+        return self.setup.output_joint_names
+
+    @property
+    def pose_blocks(self) -> list[str]:
+        """Keyword names of the pose blocks this model takes."""
+        return [block.name for block in self.setup.spec.pose_blocks]
+
+    def __call__(self, *, pose2rot: bool = True, return_verts: bool = True, **params: Any) -> BodyOutput:
+        """Pose the model.
+
+        Keyword arguments are ``betas``, ``expression``, ``transl`` and the pose blocks
+        (:attr:`pose_blocks`), as NumPy arrays (or anything ``np.asarray`` takes); batch 1
+        broadcasts. With ``pose2rot=False`` pose blocks are rotation matrices (B, n, 3, 3).
+        """
+        allowed = set(self.pose_blocks) | {"betas", "expression", "transl"}
+        for name in sorted(set(params) - allowed):
+            warn_once("BodyModel.__call__", f"BodyModel: ignoring unknown keyword argument {name!r}", key=name)
+        arrays = {k: None if v is None else np.asarray(v, dtype=self.dtype) for k, v in params.items()
+                  if k in allowed}
+        out = evaluate(self.setup, self.arrays, arrays, rotation_matrices=not pose2rot, vertices=return_verts)
+        verts, joints, transl = out["vertices"], out["joints"], out["transl"]
+        if transl is not None:
+            joints = joints + transl[:, None]
+            verts = None if verts is None else verts + transl[:, None]
+        return BodyOutput(vertices=verts, joints=joints, full_pose=out["full_pose"], rotmats=out["rotmats"],
+                          betas=out["betas"], expression=out["expression"], transl=transl,
+                          pose={name: out[name] for name in self.pose_blocks})
