@@ -1,0 +1,199 @@
+"""Writing posed meshes to OBJ / PLY files, and per-vertex colours from skinning weights.
+
+Takes plain NumPy arrays: ``vertices`` (V, 3) and ``faces`` (F, 3) integer indices. Files are
+written through trimesh with ``process=False``, so vertex and face order are kept exactly.
+"""
+
+from __future__ import annotations
+
+import colorsys
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+try:  # pragma: no cover - depends on the rest of the package
+    from smplcore.errors import ShapeError as _ShapeError
+except ImportError:  # pragma: no cover
+    _ShapeError = ValueError
+
+__all__ = ["SUPPORTED_SUFFIXES", "save_mesh", "weight_colors"]
+
+#: File suffixes :func:`save_mesh` can write.
+SUPPORTED_SUFFIXES = (".obj", ".ply")
+
+
+def _as_array(name: str, value: Any) -> np.ndarray:
+    if value is None:
+        raise ValueError(f"{name}: expected an array, got None")
+    if hasattr(value, "toarray") and not isinstance(value, np.ndarray):  # scipy.sparse
+        value = value.toarray()
+    if hasattr(value, "detach") and hasattr(value, "cpu"):  # a torch tensor, without importing torch
+        value = value.detach().cpu().numpy()
+    try:
+        return np.asarray(value)
+    except Exception as exc:
+        raise ValueError(f"{name}: could not be converted to a NumPy array ({exc})") from exc
+
+
+def _check_vertices(vertices: Any) -> np.ndarray:
+    arr = _as_array("vertices", vertices)
+    if arr.ndim == 3 and arr.shape[-1] == 3:
+        raise _ShapeError(
+            f"vertices: expected shape (V, 3), got a batch {tuple(arr.shape)}; save_mesh writes one mesh "
+            "per file, e.g. `for i, v in enumerate(vertices): save_mesh(f'mesh_{i}.obj', v, faces)`"
+        )
+    if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] < 1:
+        raise _ShapeError(f"vertices: expected shape (V, 3), got {tuple(arr.shape)}")
+    if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
+        raise ValueError(f"vertices: expected a float array, got dtype {arr.dtype}")
+    arr = arr.astype(np.float64, copy=False)
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.count_nonzero(~np.isfinite(arr)))
+        raise ValueError(f"vertices: expected finite values, got {bad} NaN/inf value(s)")
+    return arr
+
+
+def _check_faces(faces: Any, num_vertices: int) -> np.ndarray:
+    arr = _as_array("faces", faces)
+    if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] < 1:
+        raise _ShapeError(f"faces: expected shape (F, 3) with F >= 1, got {tuple(arr.shape)}")
+    if not np.issubdtype(arr.dtype, np.integer):
+        raise ValueError(f"faces: expected an integer array, got dtype {arr.dtype}")
+    lo, hi = int(arr.min()), int(arr.max())
+    if lo < 0 or hi >= num_vertices:
+        raise ValueError(
+            f"faces: indices must be in [0, {num_vertices - 1}] for {num_vertices} vertices, "
+            f"got values in [{lo}, {hi}]"
+        )
+    return arr.astype(np.int64, copy=False)
+
+
+def _check_vertex_colors(vertex_colors: Any, num_vertices: int) -> np.ndarray:
+    """(V, 3|4) floats in [0, 1] or uint8 -> (V, 4) uint8."""
+    arr = _as_array("vertex_colors", vertex_colors)
+    if arr.ndim != 2 or arr.shape[0] != num_vertices or arr.shape[1] not in (3, 4):
+        raise _ShapeError(
+            f"vertex_colors: expected shape (V={num_vertices}, 3) or (V={num_vertices}, 4), got {tuple(arr.shape)}"
+        )
+    if arr.dtype == np.uint8:
+        out = arr
+    elif np.issubdtype(arr.dtype, np.floating):
+        if not np.all(np.isfinite(arr)) or arr.min() < 0.0 or arr.max() > 1.0:
+            raise ValueError(
+                "vertex_colors: float colours must be finite and in [0, 1] (pass uint8 for 0-255), "
+                f"got values in [{np.nanmin(arr)}, {np.nanmax(arr)}]"
+            )
+        out = np.round(arr * 255.0).astype(np.uint8)
+    else:
+        raise ValueError(f"vertex_colors: expected floats in [0, 1] or uint8, got dtype {arr.dtype}")
+    if out.shape[1] == 3:
+        out = np.concatenate([out, np.full((num_vertices, 1), 255, dtype=np.uint8)], axis=1)
+    return np.ascontiguousarray(out)
+
+
+def save_mesh(
+    path: str | os.PathLike,
+    vertices: Any,
+    faces: Any,
+    *,
+    vertex_colors: Any = None,
+) -> Path:
+    """Write one mesh to ``path`` as Wavefront OBJ or binary PLY, chosen from the suffix.
+
+    Args:
+        path: file to write, ending in ``.obj`` or ``.ply`` (any case); parent folders are created.
+        vertices: (V, 3) vertex positions. A batch (N, V, 3) is refused: one mesh per file.
+        faces: (F, 3) integer vertex indices in [0, V).
+        vertex_colors: optional (V, 3) or (V, 4) colours, floats in [0, 1] or uint8. PLY keeps
+            them exactly (as uint8 RGBA); OBJ writes them as the common ``v x y z r g b`` extension.
+
+    Returns:
+        The path written, as a :class:`pathlib.Path`.
+
+    Vertex and face order are kept (trimesh with ``process=False``): reloading with
+    ``trimesh.load(path, process=False)`` gives the same arrays. Every vertex is written, but
+    trimesh's OBJ reader drops vertices no face uses unless it is given ``maintain_order=True``.
+    """
+    out = Path(path)
+    suffix = out.suffix.lower()
+    if suffix not in SUPPORTED_SUFFIXES:
+        raise ValueError(
+            f"path: unsupported file suffix {out.suffix!r} in {str(out)!r}; supported: "
+            + ", ".join(SUPPORTED_SUFFIXES)
+        )
+    verts = _check_vertices(vertices)
+    tris = _check_faces(faces, verts.shape[0])
+    colors = None if vertex_colors is None else _check_vertex_colors(vertex_colors, verts.shape[0])
+
+    try:
+        import trimesh
+    except ImportError as exc:
+        raise RuntimeError(
+            f"save_mesh needs trimesh ({exc}); install it with `pip install 'smplcore[export]'`"
+        ) from exc
+
+    mesh = trimesh.Trimesh(vertices=verts, faces=tris, vertex_colors=colors, process=False, validate=False)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if suffix == ".obj":
+        # Normals are left out: viewers compute them, and a reader that merges v/vn pairs
+        # could otherwise reorder vertices. Enough digits to keep float32 round trips exact.
+        data = trimesh.exchange.obj.export_obj(
+            mesh, include_normals=False, include_color=colors is not None, include_texture=False, digits=9
+        )
+        out.write_text(data, encoding="utf-8")
+    else:
+        data = trimesh.exchange.ply.export_ply(
+            mesh, encoding="binary", vertex_normal=False, include_attributes=False
+        )
+        out.write_bytes(data)
+    return out
+
+
+def _palette(count: int) -> np.ndarray:
+    """``count`` distinct, fixed RGB colours (floats in [0, 1]).
+
+    Hues step by the golden ratio so neighbouring indices (usually neighbouring body parts)
+    get far-apart hues; saturation and value cycle so colours that share a hue still differ.
+    """
+    golden = 0.618033988749895
+    sats = (0.75, 0.55, 0.9)
+    vals = (0.95, 0.8, 0.65)
+    out = np.empty((count, 3))
+    for j in range(count):
+        hue = (0.05 + j * golden) % 1.0
+        out[j] = colorsys.hsv_to_rgb(hue, sats[j % 3], vals[(j // 3) % 3])
+    return out
+
+
+def weight_colors(weights: Any) -> np.ndarray:
+    """A colour per vertex from skinning weights, to show which joints move which vertices.
+
+    Each of the J joints gets a fixed, distinct colour (the same for a given J on every call);
+    a vertex's colour is the mix of its joints' colours by weight (rows are normalised to sum
+    to one; a vertex with no weight is grey).
+
+    Args:
+        weights: (V, J) non-negative skinning weights (dense or scipy.sparse).
+
+    Returns:
+        (V, 3) uint8 RGB, ready for ``save_mesh(..., vertex_colors=...)``.
+    """
+    arr = _as_array("weights", weights)
+    if arr.ndim != 2 or arr.shape[0] < 1 or arr.shape[1] < 1:
+        raise _ShapeError(f"weights: expected shape (V, J), got {tuple(arr.shape)}")
+    if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
+        raise ValueError(f"weights: expected a float array, got dtype {arr.dtype}")
+    arr = arr.astype(np.float64, copy=False)
+    if not np.all(np.isfinite(arr)):
+        raise ValueError("weights: expected finite values, got NaN/inf")
+    if arr.min() < -1e-4:
+        raise ValueError(f"weights: expected non-negative skinning weights, got a minimum of {arr.min()}")
+    w = np.clip(arr, 0.0, None)
+    total = w.sum(axis=1, keepdims=True)
+    empty = total[:, 0] <= 0.0
+    w = w / np.where(total > 0.0, total, 1.0)
+    rgb = w @ _palette(arr.shape[1])
+    rgb[empty] = 0.5
+    return np.round(np.clip(rgb, 0.0, 1.0) * 255.0).astype(np.uint8)
