@@ -89,6 +89,44 @@ class BodyModel:
         return self.setup.output_joint_names
 
     @property
+    def skeleton_joint_names(self) -> list[str]:
+        """Names of the J skeleton joints (without extra joints and landmarks)."""
+        return self.setup.output_joint_names[: self.setup.data.num_joints]
+
+    @property
+    def parents(self) -> np.ndarray:
+        """(J,) parent of each skeleton joint, -1 for the root."""
+        return np.asarray(self.setup.data.parents)
+
+    @property
+    def skinning_weights(self) -> np.ndarray:
+        """(V, J) linear-blend-skinning weights."""
+        return np.asarray(self.setup.data.weights)
+
+    @property
+    def has_pose_correctives(self) -> bool:
+        """Whether the model has (non-zero) pose-corrective blend shapes."""
+        return self.arrays.pose_basis is not None
+
+    def rest_pose(self, betas: Any = None, expression: Any = None) -> tuple[np.ndarray, np.ndarray]:
+        """The shaped body before posing: vertices (V, 3) and skeleton joints (J, 3) for one body.
+
+        ``betas`` / ``expression`` are 1-D (or (1, n)); narrower than the model's count is zero-padded.
+        """
+        from smplcore.engine import body as engine
+        from smplcore.model_setup import _rows
+
+        coeffs = []
+        for name, value, width in (("betas", betas, self.num_betas),
+                                   ("expression", expression, self.num_expression_coeffs)):
+            if name == "expression" and not self.setup.spec.has_expression:
+                continue
+            value = np.zeros((1, width), self.dtype) if value is None else np.asarray(value, self.dtype)
+            coeffs.append(_rows(name, value, 1, width, allow_narrower=True))
+        c = np.concatenate(coeffs, axis=1)
+        return engine.shaped_vertices(c, self.arrays)[0], engine.rest_joints(c, self.arrays)[0]
+
+    @property
     def pose_blocks(self) -> list[str]:
         """Keyword names of the pose blocks this model takes."""
         return [block.name for block in self.setup.spec.pose_blocks]

@@ -1,0 +1,84 @@
+"""The ``smplcore`` command line: a thin layer over library functions."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from pathlib import Path
+
+from smplcore.errors import ModelFileError, ShapeError
+
+
+# Modules that add their own subcommand: each has ``add_parser(subparsers)`` registering a parser whose
+# ``run`` default is a function ``(args) -> exit status``.
+_SUBCOMMAND_MODULES = ("smplcore.export.cli", "smplcore.motion.cli")
+
+
+def _parse_floats(text: str) -> list[float]:
+    try:
+        return [float(v) for v in text.replace(",", " ").split()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected numbers separated by commas, got {text!r}") from None
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from smplcore.demo import run_demo
+
+    result = run_demo(args.out, poses=args.poses, pose_file=args.pose, betas=args.betas, model_path=args.model_path,
+                      model_type=args.model_type, gender=args.gender, mesh_format=args.format,
+                      render=not args.no_render)
+    print(f"mesh:  {result.mesh_path}")
+    if result.image_path is not None:
+        print(f"image: {result.image_path}")
+    return 0
+
+
+def _cmd_convert(args: argparse.Namespace) -> int:
+    from smplcore.io import convert
+
+    out = convert(args.input, args.output, model_type=args.model_type, gender=args.gender)
+    print(f"wrote {out}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="smplcore", description="SMPL-family body models: fast, exact, safe.")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    demo = sub.add_parser("demo", help="pose a body model and write a mesh and a rendered PNG")
+    demo.add_argument("--out", type=Path, default=Path("smplcore-demo"), help="output folder (default: %(default)s)")
+    demo.add_argument("--poses", nargs="+", default=None,
+                      help="named poses: t-pose a-pose walk wave squat (default: a-pose walk wave squat)")
+    demo.add_argument("--pose", type=Path, default=None, help="file of body poses (.npy/.npz/.txt; 69 or 72 values)")
+    demo.add_argument("--betas", type=_parse_floats, default=None, help="shape coefficients, e.g. '1.5,-0.5'")
+    demo.add_argument("--model-path", default=None, help="your model file or folder (default: the open model)")
+    demo.add_argument("--model-type", default=None, help="smpl, smplh, smplx or open")
+    demo.add_argument("--gender", default="neutral")
+    demo.add_argument("--format", choices=("obj", "ply"), default="obj", help="mesh format (default: obj)")
+    demo.add_argument("--no-render", action="store_true", help="skip the PNG")
+    demo.set_defaults(run=_cmd_demo)
+
+    conv = sub.add_parser("convert", help="rewrite any model file as a clean, pickle-free .npz")
+    conv.add_argument("input", type=Path)
+    conv.add_argument("output", type=Path)
+    conv.add_argument("--model-type", default=None)
+    conv.add_argument("--gender", default=None)
+    conv.set_defaults(run=_cmd_convert)
+
+    for module_name in _SUBCOMMAND_MODULES:
+        importlib.import_module(module_name).add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.run(args)
+    except (ModelFileError, ShapeError, ValueError, FileNotFoundError) as exc:
+        print(f"smplcore {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,169 @@
+"""Motion sequences: AMASS-style parameter files as a typed :class:`Motion`.
+
+AMASS stores one sequence per ``.npz``: ``poses`` (T, 3 J) axis-angle in the model's joint order
+(SMPL+H: 156 values = root, 21 body joints, 15 + 15 hand joints; SMPL-X: 165 values = root, 21 body
+joints, jaw, left eye, right eye, 15 + 15 hand joints), ``trans`` (T, 3), ``betas``, ``gender`` and
+the frame rate (``mocap_framerate`` for SMPL+H, ``mocap_frame_rate`` for SMPL-X). Hand poses in AMASS
+are absolute: evaluate them with ``flat_hand_mean=True`` and ``use_pca=False``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from smplcore.errors import ModelFileError, ShapeError
+from smplcore.family.specs import get_spec
+
+# Full-pose width (values per frame) of each model type.
+POSE_WIDTH = {"smpl": 72, "smplh": 156, "smplx": 165, "mano": 48, "flame": 15}
+_TYPE_BY_WIDTH = {v: k for k, v in POSE_WIDTH.items()}
+
+
+@dataclass(frozen=True)
+class Motion:
+    """A motion sequence of one body.
+
+    Attributes
+    ----------
+    poses : (T, 3 J) axis-angle full pose per frame, in the joint order of ``model_type``.
+    trans : (T, 3) root translation per frame (metres).
+    betas : (S,) shape coefficients.
+    fps : frames per second.
+    model_type : ``smplh``, ``smplx`` or ``smpl`` (the layout of ``poses``).
+    gender : ``neutral``, ``male`` or ``female``.
+    expression : (T, E) expression coefficients, or None.
+    dmpls : (T, 8) soft-tissue coefficients (AMASS SMPL+H), kept but not used by the body models.
+    source : the file it came from, or a description.
+    """
+
+    poses: np.ndarray
+    trans: np.ndarray
+    betas: np.ndarray
+    fps: float
+    model_type: str = "smplh"
+    gender: str = "neutral"
+    expression: np.ndarray | None = None
+    dmpls: np.ndarray | None = None
+    source: str = field(default="<memory>")
+
+    def __post_init__(self) -> None:
+        poses = np.asarray(self.poses)
+        trans = np.asarray(self.trans)
+        if poses.ndim != 2 or poses.shape[1] != POSE_WIDTH.get(self.model_type, -1):
+            raise ShapeError(f"poses: expected shape (T, {POSE_WIDTH.get(self.model_type, '3 J')}) for a "
+                             f"{self.model_type!r} motion, got {poses.shape}")
+        if trans.shape != (poses.shape[0], 3):
+            raise ShapeError(f"trans: expected shape ({poses.shape[0]}, 3) to match poses, got {trans.shape}")
+        if not np.isfinite(poses).all() or not np.isfinite(trans).all():
+            bad = "poses" if not np.isfinite(poses).all() else "trans"
+            raise ShapeError(f"{bad}: contains NaN or infinite values")
+        if not (np.isfinite(self.fps) and self.fps > 0):
+            raise ValueError(f"fps: expected a positive frame rate, got {self.fps}")
+
+    @property
+    def num_frames(self) -> int:
+        return int(self.poses.shape[0])
+
+    @property
+    def duration(self) -> float:
+        """Length in seconds."""
+        return self.num_frames / self.fps
+
+    def __len__(self) -> int:
+        return self.num_frames
+
+    def slice(self, start: int = 0, stop: int | None = None, step: int = 1) -> "Motion":
+        """Frames ``start:stop:step`` (the frame rate divides by ``step``)."""
+        sl = np.s_[start:stop:step]
+        return replace(self, poses=self.poses[sl], trans=self.trans[sl], fps=self.fps / step,
+                       expression=None if self.expression is None else self.expression[sl],
+                       dmpls=None if self.dmpls is None else self.dmpls[sl])
+
+    def model_params(self, model_type: str, joint_names: list[str] | None = None) -> dict[str, np.ndarray]:
+        """Keyword arguments for a model of ``model_type``: its pose blocks, ``transl`` and ``betas``.
+
+        The full pose is carried over joint by joint by name, so a SMPL+H motion drives SMPL, the
+        open model or SMPL-X (joints the source lacks stay at zero rotation).
+        """
+        target = get_spec(model_type)
+        names = list(joint_names or target.joint_names)
+        source_names = list(get_spec(self.model_type).joint_names)
+        frames = self.num_frames
+        src = self.poses.reshape(frames, -1, 3)
+        full = np.zeros((frames, len(names), 3), dtype=src.dtype)
+        for j, name in enumerate(names):
+            if name in source_names:
+                full[:, j] = src[:, source_names.index(name)]
+        params: dict[str, np.ndarray] = {}
+        for block, (start, stop) in target.block_offsets().items():
+            params[block] = full[:, start:stop].reshape(frames, -1)
+        params["transl"] = self.trans
+        params["betas"] = np.asarray(self.betas)[None]
+        if self.expression is not None and target.has_expression:
+            params["expression"] = self.expression
+        return params
+
+
+def _text(value: Any) -> str:
+    value = np.asarray(value)
+    item = value.item() if value.size == 1 else value
+    if isinstance(item, bytes):
+        return item.decode("utf-8", "replace")
+    return str(item)
+
+
+def load_motion(path: str | Path) -> Motion:
+    """Read an AMASS-style ``.npz`` (SMPL+H, SMPL-X or SMPL poses) without unpickling anything.
+
+    Raises
+    ------
+    ModelFileError
+        naming the file and key: missing keys, inconsistent shapes, NaNs, truncated archives.
+    """
+    from smplcore.io.containers import read_container
+
+    path = Path(path)
+    raw = read_container(path)
+    for key in ("poses", "trans"):
+        if key not in raw:
+            raise ModelFileError(path, f"missing key; the file has {sorted(raw)}", key=key)
+    poses = np.asarray(raw["poses"], dtype=np.float64)
+    if poses.ndim != 2:
+        raise ModelFileError(path, f"expected shape (T, 3 J), found {poses.shape}", key="poses")
+    declared = _text(raw["surface_model_type"]).lower() if "surface_model_type" in raw else None
+    model_type = declared or _TYPE_BY_WIDTH.get(poses.shape[1])
+    if model_type not in POSE_WIDTH:
+        raise ModelFileError(path, f"cannot tell the body model from {poses.shape[1]} pose values per frame "
+                                   f"(expected one of {sorted(_TYPE_BY_WIDTH)})", key="poses")
+    fps_key = next((k for k in ("mocap_framerate", "mocap_frame_rate", "fps", "frame_rate") if k in raw), None)
+    if fps_key is None:
+        raise ModelFileError(path, "missing the frame rate (mocap_framerate or mocap_frame_rate)",
+                             key="mocap_framerate")
+    gender = _text(raw.get("gender", "neutral")).strip().lower() or "neutral"
+    betas = np.asarray(raw.get("betas", np.zeros(10)), dtype=np.float64).reshape(-1)
+    optional = {k: np.asarray(raw[k], dtype=np.float64) for k in ("expression", "dmpls") if k in raw}
+    try:
+        return Motion(poses=poses, trans=np.asarray(raw["trans"], dtype=np.float64), betas=betas,
+                      fps=float(np.asarray(raw[fps_key]).reshape(-1)[0]), model_type=model_type, gender=gender,
+                      source=str(path), **optional)
+    except (ShapeError, ValueError) as exc:
+        key = str(exc).split(":")[0] if ":" in str(exc) else None
+        raise ModelFileError(path, str(exc).split(": ", 1)[-1], key=key) from None
+
+
+def save_motion(motion: Motion, path: str | Path) -> Path:
+    """Write ``motion`` as an AMASS-style ``.npz`` (no pickles)."""
+    path = Path(path)
+    arrays = {"poses": motion.poses, "trans": motion.trans, "betas": motion.betas, "gender": np.array(motion.gender),
+              "surface_model_type": np.array(motion.model_type)}
+    arrays["mocap_frame_rate" if motion.model_type == "smplx" else "mocap_framerate"] = np.array(motion.fps)
+    if motion.expression is not None:
+        arrays["expression"] = motion.expression
+    if motion.dmpls is not None:
+        arrays["dmpls"] = motion.dmpls
+    np.savez(path, **arrays)
+    return path
