@@ -24,7 +24,14 @@ __all__ = ["BodyModel", "BodyOutput", "ModelData", "ModelFileError", "ShapeError
            "load_model", "save_npz", *sorted(_TORCH_NAMES)]
 
 
+_LAZY_SUBMODULES = {"body_models", "lbs", "utils", "vertex_ids", "joint_names", "torch", "motion", "export", "render"}
+
+
 def __getattr__(name: str) -> Any:
+    if name in _LAZY_SUBMODULES:
+        import importlib
+
+        return importlib.import_module(f"smplcore.{name}")
     if name in _TORCH_NAMES:
         from smplcore.torch import models
 

