@@ -138,7 +138,7 @@ def _demo_betas(betas: Any, count: int, num_betas: int) -> np.ndarray:
             raise ValueError(f"betas: the model takes at most {num_betas} shape coefficients, got {b.shape[1]}")
         return np.repeat(b, count, axis=0)
     spread = np.zeros((count, num_betas))
-    values = np.linspace(-1.5, 1.5, count) if count > 1 else np.zeros(1)
+    values = np.linspace(-0.8, 0.8, count) if count > 1 else np.zeros(1)
     spread[:, 0] = values
     if num_betas > 1:
         spread[:, 1] = values[::-1] * 0.8
