@@ -67,7 +67,17 @@ class ModelSetup:
     extra_joint_names: list[str]
     use_face_contour: bool
     neck_chain: list[int] = field(default_factory=list)
-    keypoints: "Keypoints | None" = None
+    keypoints: Keypoints | None = None
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    def const(self, name: str, array: np.ndarray, like: Any) -> Any:
+        """``array`` in the namespace, dtype (for floats) and device of ``like``, converted once."""
+        key = (name, type(like).__module__, str(like.dtype), str(getattr(like, "device", "cpu")))
+        value = self._cache.get(key)
+        if value is None:
+            value = index(array, like) if np.asarray(array).dtype.kind in "iu" else _const(array, like)
+            self._cache[key] = value
+        return value
 
     def __post_init__(self) -> None:
         if self.keypoints is None:
@@ -274,10 +284,10 @@ def evaluate(setup: ModelSetup, arrays: engine.BodyArrays, params: dict[str, Any
     """
     spec = setup.spec
     given = {k: v for k, v in params.items() if v is not None}
-    ref = next(iter(given.values()), like if like is not None else arrays.v_template)
+    ref = next(iter(given.values()), like if like is not None else arrays.joint_template)
     xp = namespace(ref)
     batch = batch_of({k: (v if v.ndim > 1 else v[None]) for k, v in given.items()})
-    zeros = xp.zeros_like(arrays.v_template[:1, :1]) * 0  # (1, 1) in the model's dtype/device
+    zeros = xp.zeros_like(arrays.joint_template[:1, :1])  # (1, 1) in the model's dtype/device
 
     def coefficients(name: str, width: int) -> Any:
         if width == 0:
@@ -314,12 +324,12 @@ def evaluate(setup: ModelSetup, arrays: engine.BodyArrays, params: dict[str, Any
             else:
                 value = _rows(block.name, value, batch, setup.pose_width(block.name))
                 if block.name in setup.hand_components:
-                    value = value @ _const(setup.hand_components[block.name], zeros)
+                    value = value @ setup.const(block.name, setup.hand_components[block.name], zeros)
             out[block.name] = value
             blocks.append(value)
         full_pose = xp.concat(blocks, axis=1)
         if np.any(setup.pose_mean):
-            full_pose = full_pose + _const(setup.pose_mean, zeros)
+            full_pose = full_pose + setup.const("pose_mean", setup.pose_mean, zeros)
         out["full_pose"] = full_pose
         rotmats = rodrigues(full_pose.reshape(batch, -1, 3))
     out["rotmats"] = rotmats
@@ -379,32 +389,32 @@ def _keypoints(setup: ModelSetup, arrays: engine.BodyArrays, coeffs: Any, rotmat
     """Extra vertex joints, static landmarks and the dynamic contour, in smplx's order."""
     kp, d = setup.keypoints, setup.data
     if verts is None:  # joints only: pose just the vertices the keypoints use
-        verts = _pose_vertex_subset(coeffs, rotmats, transforms, arrays, kp.ids)
-        extra, corners, contour = kp.local_extra, kp.local_corners, kp.local_contour_corners
+        verts = _pose_vertex_subset(setup, coeffs, rotmats, transforms, arrays)
+        prefix = "local_"
     else:
-        extra, corners, contour = kp.extra, kp.corners, kp.contour_corners
+        prefix = ""
+    c = setup.const
     out = []
-    if extra.size:
-        out.append(verts[:, index(extra, verts)])
+    if kp.extra.size:
+        out.append(verts[:, c(prefix + "extra", getattr(kp, prefix + "extra"), verts)])
     if setup.spec.landmarks:
-        out.append(barycentric_points(verts, index(corners, verts), _const(d.lmk_bary_coords, verts)))
+        corners = c(prefix + "corners", getattr(kp, prefix + "corners"), verts)
+        out.append(barycentric_points(verts, corners, c("lmk_bary", d.lmk_bary_coords, verts)))
         if setup.use_face_contour:
             rows = contour_rows(rotmats, setup.neck_chain)
-            dyn_bary = _const(d.dynamic_lmk_bary_coords, verts)[rows]
-            out.append(barycentric_points(verts, index(contour, verts)[rows], dyn_bary))
+            dyn_bary = c("dyn_bary", d.dynamic_lmk_bary_coords, verts)[rows]
+            contour = c(prefix + "contour_corners", getattr(kp, prefix + "contour_corners"), verts)
+            out.append(barycentric_points(verts, contour[rows], dyn_bary))
     return out
 
 
-def _pose_vertex_subset(coeffs: Any, rotmats: Any, transforms: Any, arrays: engine.BodyArrays,
-                        ids: np.ndarray) -> Any:
-    """(B, len(ids), 3) posed vertices ``ids`` only."""
-    from smplcore.engine.rotations import pose_features
+def _pose_vertex_subset(setup: ModelSetup, coeffs: Any, rotmats: Any, transforms: Any,
+                        arrays: engine.BodyArrays) -> Any:
+    """(B, n, 3) posed keypoint vertices only (``setup.keypoints.ids``)."""
     from smplcore.engine.skeleton import skin
 
-    rows = index(ids, arrays.weights)
-    cols = index((ids[:, None] * 3 + np.arange(3)).reshape(-1), arrays.weights)
-    batch = coeffs.shape[0]
-    v = arrays.v_template[rows] + (coeffs @ arrays.shape_basis[:, cols]).reshape(batch, -1, 3)
-    if arrays.pose_basis is not None:
-        v = v + (pose_features(rotmats) @ arrays.pose_basis[:, cols]).reshape(v.shape)
+    ids = setup.keypoints.ids
+    rows = setup.const("kp_rows", ids, arrays.weights)
+    cols = setup.const("kp_cols", (ids[:, None] * 3 + np.arange(3)).reshape(-1), arrays.weights)
+    v = engine.rest_vertices(coeffs, rotmats, arrays, columns=cols)
     return skin(v, transforms, arrays.weights[rows])

@@ -106,7 +106,7 @@ class BodyModel:
     @property
     def has_pose_correctives(self) -> bool:
         """Whether the model has (non-zero) pose-corrective blend shapes."""
-        return self.arrays.pose_basis is not None
+        return self.arrays.has_pose_correctives
 
     def rest_pose(self, betas: Any = None, expression: Any = None) -> tuple[np.ndarray, np.ndarray]:
         """The shaped body before posing: vertices (V, 3) and skeleton joints (J, 3) for one body.

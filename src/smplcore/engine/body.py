@@ -14,71 +14,92 @@ from typing import Any, Callable
 
 import numpy as np
 
+from smplcore.engine.backend import namespace
 from smplcore.engine.rotations import pose_features
 from smplcore.engine.skeleton import KinematicTree, skin, skinning_transforms, world_transforms
 
 
 @dataclass
 class BodyArrays:
-    """A model's arrays in one namespace, dtype and device.
+    """A model's arrays in one namespace, dtype and device, laid out for one GEMM per body part.
 
     Attributes
     ----------
-    v_template : (V, 3).
-    shape_basis : (K, V * 3) shape (and expression) blend shapes, one row per coefficient.
+    blend_basis : (1 + K [+ P], V * 3) rows: the template, the K shape (and expression) blend
+        shapes, then the P pose correctives when the model has any. Rest-pose vertices are
+        ``[1, coeffs, pose_features] @ blend_basis``: template, shape and pose blend in one product.
+    num_coeffs : K.
     joint_template : (J, 3) rest joints of the template, ``J_regressor @ v_template``.
     joint_shape_basis : (K, J * 3) how each coefficient moves the rest joints.
-    pose_basis : (P, V * 3) pose correctives, or None.
     weights : (V, J) skinning weights.
     tree : the kinematic tree.
     """
 
-    v_template: Any
-    shape_basis: Any
+    blend_basis: Any
+    num_coeffs: int
     joint_template: Any
     joint_shape_basis: Any
-    pose_basis: Any | None
     weights: Any
     tree: KinematicTree
 
     @classmethod
     def build(cls, v_template: np.ndarray, shapedirs: np.ndarray, J_regressor: np.ndarray,
               posedirs: np.ndarray | None, weights: np.ndarray, parents: np.ndarray,
-              convert: Callable[[np.ndarray], Any] = np.asarray) -> "BodyArrays":
+              convert: Callable[[np.ndarray], Any] = np.asarray) -> BodyArrays:
         """Arrange NumPy model arrays for evaluation; ``convert`` moves each to the target namespace.
 
         ``shapedirs`` is (V, 3, K) (shape and expression columns already concatenated), ``posedirs``
-        (V, 3, P) or None when the model has no (or only zero) pose correctives.
+        (V, 3, P) or None; all-zero pose correctives are dropped.
         """
         v_template = np.asarray(v_template, dtype=np.float64)
         shapedirs = np.asarray(shapedirs, dtype=np.float64)
         J_regressor = np.asarray(J_regressor, dtype=np.float64)
         num_verts, num_coeffs = v_template.shape[0], shapedirs.shape[-1]
-        joint_shape = np.einsum("jv,vdk->kjd", J_regressor, shapedirs).reshape(num_coeffs, -1)
-        pose_basis = None
+        rows = [v_template.reshape(1, -1), shapedirs.reshape(num_verts * 3, num_coeffs).T]
         if posedirs is not None and np.any(posedirs):
-            pose_basis = convert(np.asarray(posedirs).reshape(num_verts * 3, -1).T)
+            rows.append(np.asarray(posedirs).reshape(num_verts * 3, -1).T)
+        joint_shape = np.einsum("jv,vdk->kjd", J_regressor, shapedirs).reshape(num_coeffs, -1)
         return cls(
-            v_template=convert(v_template),
-            shape_basis=convert(shapedirs.reshape(num_verts * 3, num_coeffs).T),
+            blend_basis=convert(np.concatenate(rows, axis=0)),
+            num_coeffs=num_coeffs,
             joint_template=convert(J_regressor @ v_template),
             joint_shape_basis=convert(joint_shape),
-            pose_basis=pose_basis,
             weights=convert(np.asarray(weights)),
             tree=KinematicTree.from_parents(parents),
         )
 
-    def map(self, fn: Callable[[Any], Any]) -> "BodyArrays":
+    @property
+    def has_pose_correctives(self) -> bool:
+        return self.blend_basis.shape[0] > 1 + self.num_coeffs
+
+    def map(self, fn: Callable[[Any], Any]) -> BodyArrays:
         """The same arrays with ``fn`` applied to each (e.g. a dtype or device change)."""
-        return BodyArrays(
-            fn(self.v_template), fn(self.shape_basis), fn(self.joint_template), fn(self.joint_shape_basis),
-            None if self.pose_basis is None else fn(self.pose_basis), fn(self.weights), self.tree)
+        return BodyArrays(fn(self.blend_basis), self.num_coeffs, fn(self.joint_template),
+                          fn(self.joint_shape_basis), fn(self.weights), self.tree)
+
+
+def _with_one(coeffs: Any) -> Any:
+    xp = namespace(coeffs)
+    return xp.concat([xp.ones_like(coeffs[:, :1]), coeffs], axis=1)
+
+
+def rest_vertices(coeffs: Any, rotmats: Any | None, arrays: BodyArrays, columns: Any = None) -> Any:
+    """(B, n, 3) rest-pose vertices: template + shape blend (+ pose correctives when ``rotmats``).
+
+    ``columns`` selects vertex coordinates (3 per vertex) for a subset of the mesh.
+    """
+    basis = arrays.blend_basis if columns is None else arrays.blend_basis[:, columns]
+    feats = _with_one(coeffs)
+    if rotmats is not None and arrays.has_pose_correctives:
+        feats = namespace(coeffs).concat([feats, pose_features(rotmats)], axis=1)
+    else:
+        basis = basis[: 1 + arrays.num_coeffs]
+    return (feats @ basis).reshape(coeffs.shape[0], -1, 3)
 
 
 def shaped_vertices(coeffs: Any, arrays: BodyArrays) -> Any:
-    """(B, V, 3) rest-pose vertices for (B, K) shape coefficients."""
-    batch = coeffs.shape[0]
-    return arrays.v_template + (coeffs @ arrays.shape_basis).reshape(batch, -1, 3)
+    """(B, V, 3) rest-pose vertices for (B, K) shape coefficients (no pose correctives)."""
+    return rest_vertices(coeffs, None, arrays)
 
 
 def rest_joints(coeffs: Any, arrays: BodyArrays) -> Any:
@@ -93,7 +114,7 @@ def forward(coeffs: Any, rotmats: Any, arrays: BodyArrays, *, vertices: bool = T
 
     Parameters
     ----------
-    coeffs : (B, K) shape (and expression) coefficients, matching ``arrays.shape_basis``.
+    coeffs : (B, K) shape (and expression) coefficients, matching ``arrays``.
     rotmats : (B, J, 3, 3) local joint rotations.
     arrays : the model.
     vertices : build the mesh (False: joints only).
@@ -109,7 +130,5 @@ def forward(coeffs: Any, rotmats: Any, arrays: BodyArrays, *, vertices: bool = T
     transforms = skinning_transforms(world_rot, world_pos, joints)
     if not vertices:
         return None, world_pos, transforms
-    v = shaped_vertices(coeffs, arrays)
-    if arrays.pose_basis is not None:
-        v = v + (pose_features(rotmats) @ arrays.pose_basis).reshape(v.shape)
+    v = rest_vertices(coeffs, rotmats, arrays)
     return skin(v, transforms, arrays.weights), world_pos, transforms

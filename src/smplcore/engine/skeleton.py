@@ -2,34 +2,37 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 import numpy as np
 
-from smplcore.engine.backend import namespace
+from smplcore.engine.backend import index, namespace
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class KinematicTree:
-    """A joint tree split into depth levels, so that each level is one batched matrix product.
+    """A joint tree reordered by depth, so that each depth level is one batched matrix product.
 
     Attributes
     ----------
     parents : parent of each joint, -1 for the root.
-    levels : joint indices at each depth (``levels[0]`` holds the root).
-    parent_slots : for each level after the first, the position of each joint's parent inside the
-        previous level.
-    order_inverse : position of each joint in the concatenation of all levels.
+    order : the joints sorted by depth (stable); each level is a contiguous run of it.
+    level_bounds : ``(start, stop)`` of each level within ``order``.
+    parent_slots : for each level after the first, the position of each joint's parent within
+        the previous level.
+    order_inverse : position of each joint within ``order``.
     """
 
     parents: tuple[int, ...]
-    levels: tuple[tuple[int, ...], ...]
+    order: tuple[int, ...]
+    level_bounds: tuple[tuple[int, int], ...]
     parent_slots: tuple[tuple[int, ...], ...]
     order_inverse: tuple[int, ...]
+    _index_cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @classmethod
-    def from_parents(cls, parents: Sequence[int]) -> "KinematicTree":
+    def from_parents(cls, parents: Sequence[int]) -> KinematicTree:
         parents = tuple(int(p) for p in parents)
         if not parents or parents[0] != -1:
             raise ValueError("parents: the first joint must be the root (parent -1)")
@@ -38,11 +41,15 @@ class KinematicTree:
             if not 0 <= p < j:
                 raise ValueError(f"parents: joint {j} has parent {p}; parents must come before their children")
             depth[j] = depth[p] + 1
-        levels = tuple(tuple(j for j in range(len(parents)) if depth[j] == d) for d in range(max(depth) + 1))
+        levels = [[j for j in range(len(parents)) if depth[j] == d] for d in range(max(depth) + 1)]
+        order = tuple(j for level in levels for j in level)
+        bounds, start = [], 0
+        for level in levels:
+            bounds.append((start, start + len(level)))
+            start += len(level)
         slots = tuple(tuple(levels[d - 1].index(parents[j]) for j in levels[d]) for d in range(1, len(levels)))
-        order = [j for level in levels for j in level]
         inverse = tuple(int(i) for i in np.argsort(order))
-        return cls(parents, levels, slots, inverse)
+        return cls(parents, order, tuple(bounds), slots, inverse)
 
     def chain_to_root(self, joint: int) -> list[int]:
         """``joint``, its parent, ..., the root."""
@@ -51,6 +58,21 @@ class KinematicTree:
             chain.append(joint)
             joint = self.parents[joint]
         return chain
+
+    def indices(self, like: Any) -> dict[str, Any]:
+        """The tree's index arrays in the namespace and on the device of ``like`` (cached)."""
+        key = (type(like).__module__, str(getattr(like, "device", "cpu")))
+        cached = self._index_cache.get(key)
+        if cached is None:
+            identity = self.order == tuple(range(len(self.order)))
+            cached = {
+                "order": None if identity else index(self.order, like),
+                "inverse": None if identity else index(self.order_inverse, like),
+                "parents": index([max(p, 0) for p in self.parents], like),
+                "slots": [index(s, like) for s in self.parent_slots],
+            }
+            self._index_cache[key] = cached
+        return cached
 
 
 def world_transforms(rotmats: Any, joints: Any, tree: KinematicTree) -> tuple[Any, Any]:
@@ -68,19 +90,20 @@ def world_transforms(rotmats: Any, joints: Any, tree: KinematicTree) -> tuple[An
     world_pos : (B, J, 3) posed joint positions.
     """
     xp = namespace(rotmats)
-    parents = list(tree.parents)
-    offsets = joints[:, 1:] - joints[:, parents[1:]]
-    offsets = xp.concat([joints[:, :1], offsets], axis=1)
-    level_rot = [rotmats[:, list(tree.levels[0])]]
-    level_pos = [offsets[:, list(tree.levels[0])]]
-    for level, slots in zip(tree.levels[1:], tree.parent_slots):
-        idx, slots = list(level), list(slots)
+    idx = tree.indices(rotmats)
+    offsets = joints - joints[:, idx["parents"]]  # the root's own "offset" is zero; replaced below
+    offsets = xp.concat([joints[:, :1], offsets[:, 1:]], axis=1)
+    if idx["order"] is not None:
+        rotmats, offsets = rotmats[:, idx["order"]], offsets[:, idx["order"]]
+    start, stop = tree.level_bounds[0]
+    level_rot, level_pos = [rotmats[:, start:stop]], [offsets[:, start:stop]]
+    for (start, stop), slots in zip(tree.level_bounds[1:], idx["slots"]):
         parent_rot = level_rot[-1][:, slots]
-        level_rot.append(parent_rot @ rotmats[:, idx])
-        level_pos.append((parent_rot @ offsets[:, idx, :, None])[..., 0] + level_pos[-1][:, slots])
-    inverse = list(tree.order_inverse)
-    world_rot = xp.concat(level_rot, axis=1)[:, inverse]
-    world_pos = xp.concat(level_pos, axis=1)[:, inverse]
+        level_rot.append(parent_rot @ rotmats[:, start:stop])
+        level_pos.append((parent_rot @ offsets[:, start:stop, :, None])[..., 0] + level_pos[-1][:, slots])
+    world_rot, world_pos = xp.concat(level_rot, axis=1), xp.concat(level_pos, axis=1)
+    if idx["inverse"] is not None:
+        world_rot, world_pos = world_rot[:, idx["inverse"]], world_pos[:, idx["inverse"]]
     return world_rot, world_pos
 
 

@@ -43,7 +43,7 @@ _SETUP_OPTIONS = {
 # Accepted for compatibility and without effect here.
 _INERT_OPTIONS = {"use_compressed", "create_vertex_joint_selector"}
 
-_ENGINE_FIELDS = ("v_template", "shape_basis", "joint_template", "joint_shape_basis", "pose_basis", "weights")
+_ENGINE_FIELDS = ("blend_basis", "joint_template", "joint_shape_basis", "weights")
 
 
 def _block_flag(block_name: str) -> str:
@@ -117,11 +117,6 @@ class BodyModule(nn.Module):
         self.faces = np.asarray(d.faces)
         self.register_buffer("faces_tensor", torch.tensor(self.faces, dtype=torch.long))
         self.register_buffer("v_template", as_float(d.v_template))
-        self.register_buffer("shapedirs", as_float(setup.shapedirs))
-        if self.SPEC.has_expression:
-            self.register_buffer("expr_dirs", as_float(setup.exprdirs))
-        if d.posedirs is not None:
-            self.register_buffer("posedirs", as_float(d.posedirs.reshape(-1, d.posedirs.shape[-1]).T))
         self.register_buffer("J_regressor", as_float(d.J_regressor))
         self.register_buffer("lbs_weights", as_float(d.weights))
         self.register_buffer("parents", torch.tensor(d.parents, dtype=torch.long))
@@ -139,7 +134,7 @@ class BodyModule(nn.Module):
                 self.register_buffer("dynamic_lmk_bary_coords", as_float(d.dynamic_lmk_bary_coords))
                 self.register_buffer("neck_kin_chain", torch.as_tensor(setup.neck_chain, dtype=torch.long))
         arrays = setup.body_arrays(as_float)
-        self._tree = arrays.tree
+        self._tree, self._num_coeffs = arrays.tree, arrays.num_coeffs
         for field in _ENGINE_FIELDS:
             value = getattr(arrays, field)
             self.register_buffer(f"_engine_{field}", value, persistent=False)
@@ -211,7 +206,29 @@ class BodyModule(nn.Module):
                 param.fill_(0)
 
     def _engine_arrays(self) -> engine.BodyArrays:
-        return engine.BodyArrays(*(getattr(self, f"_engine_{f}") for f in _ENGINE_FIELDS), tree=self._tree)
+        return engine.BodyArrays(self._engine_blend_basis, self._num_coeffs, self._engine_joint_template,
+                                 self._engine_joint_shape_basis, self._engine_weights, self._tree)
+
+    # smplx's blend-shape buffers, as views of the engine's single basis (no second copy in memory)
+    @property
+    def shapedirs(self) -> torch.Tensor:
+        """(V, 3, num_betas) shape blend shapes."""
+        rows = self._engine_blend_basis[1 : 1 + self.num_betas]
+        return rows.T.reshape(-1, 3, self.num_betas)
+
+    @property
+    def expr_dirs(self) -> torch.Tensor:
+        """(V, 3, num_expression_coeffs) expression blend shapes (SMPL-X, FLAME)."""
+        rows = self._engine_blend_basis[1 + self.num_betas : 1 + self._num_coeffs]
+        return rows.T.reshape(-1, 3, self.num_expression_coeffs)
+
+    @property
+    def posedirs(self) -> torch.Tensor:
+        """(P, V * 3) pose correctives, as smplx stores them (zeros for a model without any)."""
+        basis = self._engine_blend_basis
+        if basis.shape[0] > 1 + self._num_coeffs:
+            return basis[1 + self._num_coeffs :]
+        return basis.new_zeros(9 * (self.J_regressor.shape[0] - 1), basis.shape[1])
 
     def forward_shape(self, betas: torch.Tensor | None = None) -> ModelOutput:
         """The shaped template (no pose): ``vertices == v_shaped``, (B, V, 3)."""
@@ -393,7 +410,6 @@ class MANO(BodyModule):
         self.setup = ModelSetup.build(data.replace(shapedirs=fixed), owner="MANO", use_pca=self.use_pca,
                                       num_pca_comps=self.num_pca_comps, flat_hand_mean=self.flat_hand_mean,
                                       num_betas=self.num_betas)
-        self.shapedirs[:, 0, :] *= -1
         arrays = self.setup.body_arrays(lambda a: torch.as_tensor(a, dtype=self.v_template.dtype,
                                                                    device=self.v_template.device))
         for field in _ENGINE_FIELDS:
