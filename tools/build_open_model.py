@@ -330,10 +330,25 @@ def axis_angle(axis, angle):
     return np.eye(3)[None] + s * K + (1 - c) * np.einsum("nij,njk->nik", K, K)
 
 
+def cap_influences(weights: np.ndarray, max_influences: int) -> np.ndarray:
+    """Keep each vertex's ``max_influences`` largest weights and renormalise the row to 1.
+
+    Real-time skinning (glTF, game engines) reads at most 4 joints per vertex; capping here keeps
+    exports of the open model exact instead of truncating there.
+    """
+    if max_influences >= weights.shape[1]:
+        return weights
+    drop = np.argsort(weights, axis=1)[:, : weights.shape[1] - max_influences]
+    capped = weights.copy()
+    np.put_along_axis(capped, drop, 0.0, axis=1)
+    return capped / capped.sum(axis=1, keepdims=True)
+
+
 class Builder:
-    def __init__(self, data_dir: Path, log=print):
+    def __init__(self, data_dir: Path, log=print, max_influences: int = 4):
         self.dir = data_dir
         self.log = log
+        self.max_influences = max_influences
         self._load()
 
     # ---------------------------------------------------------------- data
@@ -419,7 +434,7 @@ class Builder:
         s = W24.sum(1)
         if np.any(s <= 0):
             raise ValueError(f"{np.sum(s <= 0)} body vertices have no skinning weight")
-        self.W24 = W24 / s[:, None]
+        self.W24 = cap_influences(W24 / s[:, None], self.max_influences)
 
         # targets
         tdir = d / "targets" / "macrodetails"
@@ -602,6 +617,7 @@ def main(argv=None):
         "--regressor-samples", type=int, default=600, help="training shapes used to fit the joint regressors"
     )
     ap.add_argument("--ridge", type=float, default=1e-2, help="regressor ridge (spreads weights)")
+    ap.add_argument("--max-influences", type=int, default=4, help="joints per vertex kept in the skinning weights")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--png", type=Path, default=None, help="optional: render the template to this png")
     args = ap.parse_args(argv)
@@ -614,7 +630,7 @@ def main(argv=None):
         find_data_dir(root)  # raises the helpful message
     data_dir = find_data_dir(root)
     print(f"data: {data_dir}")
-    b = Builder(data_dir)
+    b = Builder(data_dir, max_influences=args.max_influences)
     rng = np.random.default_rng(args.seed)
     n_tot = args.samples + args.holdout
     params = b.sample_params(rng, n_tot, args.age_years)

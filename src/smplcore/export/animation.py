@@ -1,0 +1,590 @@
+"""What the rigged exporters (glTF, BVH) share: model input turned into a skeleton animation.
+
+:func:`prepare_animation` takes a model and any supported input -- a :class:`~smplcore.motion.Motion`,
+the path of an AMASS-style ``.npz`` (or of a parameter-set ``.npz`` / ``.json``), a dict of model
+keyword arrays (one parameter set or a batch of frames) -- and returns an :class:`Animation`: the
+shaped rest pose (vertices and joints), per-frame local joint rotations (T, J, 3, 3) and the root
+translation. Both writers start from it, so they agree with each other and with the model.
+
+Rest-pose semantics (what a rig made from this reproduces):
+
+* rest mesh = the template with the body shape (``betas``) applied, unposed;
+* joint rest transforms = translation by ``joint - parent joint``, identity rotation (SMPL's frame);
+* skinning = the model's linear blend skinning *without* pose-corrective blend shapes -- a rig has no
+  way to express those; :func:`pose_corrective_error` measures what is lost for models that have them.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from smplcore.errors import ShapeError
+
+__all__ = [
+    "Animation",
+    "ExportReport",
+    "load_input",
+    "prepare_animation",
+    "top_k_weights",
+    "truncation_error",
+    "pose_corrective_error",
+    "lbs",
+]
+
+Progress = Callable[[int], Any]  # called with the number of frames just processed (e.g. tqdm.update)
+
+DEFAULT_FPS = 30.0
+_CHUNK = 256
+
+
+@dataclass
+class Animation:
+    """A skeleton animation of one shaped body.
+
+    Attributes
+    ----------
+    rotations : (T, J, 3, 3) float64 local joint rotations (the root's is the global orientation).
+    transl : (T, 3) root translation (metres) added on top of the rest root joint.
+    rest_joints : (J, 3) shaped, unposed joint positions.
+    rest_vertices : (V, 3) shaped, unposed vertices (with ``base_expression`` applied).
+    faces : (F, 3) triangles.
+    weights : (V, J) full skinning weights.
+    parents : (J,) parent of each joint (-1 for the root).
+    joint_names : the J skeleton joint names.
+    fps : frame rate.
+    betas : (S,) the shape coefficients as used (matching the model's ``num_betas``).
+    expression : (T, E) per-frame expression coefficients, or None for models without expressions.
+    base_expression : (E,) the expression baked into ``rest_vertices`` (the constant expression, or zeros).
+    model_type : the model's type.
+    source : where the input came from.
+    notes : warnings raised while preparing (also issued with :func:`warnings.warn`).
+    """
+
+    rotations: np.ndarray
+    transl: np.ndarray
+    rest_joints: np.ndarray
+    rest_vertices: np.ndarray
+    faces: np.ndarray
+    weights: np.ndarray
+    parents: np.ndarray
+    joint_names: list[str]
+    fps: float
+    betas: np.ndarray
+    expression: np.ndarray | None = None
+    base_expression: np.ndarray | None = None
+    model_type: str = ""
+    source: str = "<memory>"
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def num_frames(self) -> int:
+        return int(self.rotations.shape[0])
+
+    @property
+    def num_joints(self) -> int:
+        return int(self.rotations.shape[1])
+
+    @property
+    def root_positions(self) -> np.ndarray:
+        """(T, 3) world position of the root joint: rest root joint + translation."""
+        return self.rest_joints[0] + self.transl
+
+    @property
+    def offsets(self) -> np.ndarray:
+        """(J, 3) rest offset of each joint from its parent (the root's from the origin)."""
+        out = self.rest_joints.copy()
+        out[1:] -= self.rest_joints[self.parents[1:]]
+        return out
+
+    @property
+    def expression_varies(self) -> bool:
+        return (
+            self.expression is not None
+            and self.expression.shape[0] > 0
+            and bool(np.any(np.abs(self.expression - self.base_expression) > 0))
+        )
+
+    def world_transforms(self, frames: slice | np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """World rotations (T', J, 3, 3) and positions (T', J, 3) of the joints (translation included)."""
+        rot = self.rotations if frames is None else self.rotations[frames]
+        transl = self.transl if frames is None else self.transl[frames]
+        offsets = self.offsets
+        world_rot = np.empty_like(rot)
+        world_pos = np.empty(rot.shape[:2] + (3,))
+        for j, parent in enumerate(self.parents):  # parents come before their children
+            if parent < 0:
+                world_rot[:, j] = rot[:, j]
+                world_pos[:, j] = offsets[j] + transl
+            else:
+                world_rot[:, j] = world_rot[:, parent] @ rot[:, j]
+                world_pos[:, j] = world_pos[:, parent] + world_rot[:, parent] @ offsets[j]
+        return world_rot, world_pos
+
+    def joints(self, frames: slice | np.ndarray | None = None) -> np.ndarray:
+        """(T', J, 3) posed joint positions."""
+        return self.world_transforms(frames)[1]
+
+    def skinning_matrices(self, frames: slice | np.ndarray | None = None) -> np.ndarray:
+        """(T', J, 3, 4) transforms taking a rest-pose point near joint j to its posed position."""
+        world_rot, world_pos = self.world_transforms(frames)
+        trans = world_pos - (world_rot @ self.rest_joints[..., None])[..., 0]
+        return np.concatenate([world_rot, trans[..., None]], axis=-1)
+
+
+@dataclass
+class ExportReport:
+    """What an exporter wrote and what the format could not carry.
+
+    Distances are in metres. ``top4_*`` compare the written skin (top ``influences`` weights per
+    vertex, renormalised) with full-weight linear blend skinning over every exported frame: the max
+    and mean displacement over all vertices and frames, and how many vertices lost weight.
+    ``pose_corrective_max`` is the largest vertex displacement of the model's pose correctives over
+    the exported frames (None for models without them) -- a rig cannot reproduce it.
+    """
+
+    path: Path
+    format: str
+    num_frames: int
+    fps: float
+    num_joints: int
+    num_vertices: int = 0
+    file_size: int = 0
+    influences: int | None = None
+    max_model_influences: int | None = None
+    top4_max_error: float | None = None
+    top4_mean_error: float | None = None
+    top4_vertices_affected: int | None = None
+    top4_max_dropped_weight: float | None = None
+    pose_corrective_max: float | None = None
+    morph_targets: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+    def summary(self) -> str:
+        """A few human-readable lines."""
+        size = self.file_size
+        human = f"{size / 1e6:.2f} MB" if size >= 1e6 else f"{size / 1e3:.1f} kB"
+        lines = [
+            f"wrote {self.path} ({self.format}, {human}): {self.num_frames} frame(s) at {self.fps:g} fps, "
+            f"{self.num_joints} joints" + (f", {self.num_vertices} vertices" if self.num_vertices else "")
+        ]
+        if self.top4_max_error is not None:
+            lines.append(
+                f"skin: top {self.influences} of up to {self.max_model_influences} weights per vertex, "
+                "renormalised; "
+                f"{self.top4_vertices_affected} vertices truncated (max dropped weight "
+                f"{self.top4_max_dropped_weight:.4f}); vertex error vs full skinning: max "
+                f"{self.top4_max_error * 1000:.3f} mm, mean {self.top4_mean_error * 1000:.4f} mm"
+            )
+        if self.morph_targets:
+            lines.append(
+                f"morph targets: {len(self.morph_targets)} ({', '.join(self.morph_targets[:4])}"
+                f"{', ...' if len(self.morph_targets) > 4 else ''})"
+            )
+        if self.pose_corrective_max is not None:
+            lines.append(
+                f"pose correctives not exported (a rig cannot express them): up to "
+                f"{self.pose_corrective_max * 1000:.1f} mm per vertex"
+            )
+        lines += [f"warning: {w}" for w in self.warnings]
+        return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------------------------------
+# Input
+
+
+def _text(value: Any) -> str:
+    value = np.asarray(value)
+    item = value.item() if value.size == 1 else value
+    return item.decode("utf-8", "replace") if isinstance(item, bytes) else str(item)
+
+
+def load_input(path: str | Path) -> Any:
+    """Read an export input file: an AMASS-style motion ``.npz`` (has ``poses``) as a
+    :class:`~smplcore.motion.Motion`, or a parameter set (``.npz`` or ``.json`` whose keys are model
+    keyword arguments -- ``betas``, ``global_orient``, ``body_pose``, ``transl``, ... -- and
+    optionally ``fps``) as a dict of arrays. No pickles are read."""
+    from smplcore.motion import load_motion
+
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such file")
+    suffix = path.suffix.lower()
+    if suffix == ".json":
+        with path.open(encoding="utf-8") as fh:
+            raw = json.load(fh)
+        if not isinstance(raw, dict):
+            raise ValueError(f"{path}: expected a JSON object of parameter arrays")
+        if "poses" in raw:
+            return _motion_from_arrays(raw, str(path))
+        return {
+            k: np.asarray(v, dtype=np.float64) if k not in ("gender", "model_type") else v
+            for k, v in raw.items()
+        }
+    if suffix == ".npz":
+        with np.load(path, allow_pickle=False) as data:
+            keys = set(data.files)
+            if "poses" in keys:
+                return load_motion(path)
+            return {k: (data[k] if data[k].dtype.kind in "fiub" else _text(data[k])) for k in keys}
+    raise ValueError(
+        f"{path}: unsupported input {path.suffix!r}; expected an AMASS-style .npz motion or a "
+        "parameter set (.npz or .json)"
+    )
+
+
+def _motion_from_arrays(arrays: Mapping[str, Any], source: str = "<memory>", fps: float | None = None) -> Any:
+    from smplcore.motion import POSE_WIDTH, Motion
+
+    poses = np.asarray(arrays["poses"], dtype=np.float64)
+    if poses.ndim == 1:
+        poses = poses[None]
+    by_width = {v: k for k, v in POSE_WIDTH.items()}
+    model_type = (
+        _text(arrays["surface_model_type"]).lower()
+        if "surface_model_type" in arrays
+        else by_width.get(poses.shape[1])
+    )
+    if model_type is None:
+        raise ShapeError(
+            f"poses: cannot tell the body model from {poses.shape[1]} values per frame "
+            f"(expected one of {sorted(by_width)})"
+        )
+    trans = np.asarray(arrays.get("trans", np.zeros((poses.shape[0], 3))), dtype=np.float64).reshape(-1, 3)
+    rate = fps or next(
+        (
+            float(np.asarray(arrays[k]).reshape(-1)[0])
+            for k in ("mocap_framerate", "mocap_frame_rate", "fps", "frame_rate")
+            if k in arrays
+        ),
+        DEFAULT_FPS,
+    )
+    expression = arrays.get("expression")
+    return Motion(
+        poses=poses,
+        trans=trans,
+        betas=np.asarray(arrays.get("betas", np.zeros(10)), np.float64).reshape(-1),
+        fps=rate,
+        model_type=model_type,
+        gender=_text(arrays.get("gender", "neutral")),
+        expression=None if expression is None else np.asarray(expression, np.float64),
+        source=source,
+    )
+
+
+def _notify(notes: list[str], message: str) -> None:
+    notes.append(message)
+    warnings.warn(message, stacklevel=3)
+
+
+def _fit_width(name: str, value: np.ndarray, width: int, notes: list[str]) -> np.ndarray:
+    """Coefficients (..., n) padded with zeros or truncated (with a warning) to ``width``."""
+    n = value.shape[-1]
+    if n > width:
+        dropped = value[..., width:]
+        if np.any(dropped != 0):
+            _notify(
+                notes,
+                f"{name}: the input has {n} coefficients but the model takes {width}; dropping the "
+                f"last {n - width} (largest |value| {np.abs(dropped).max():.3g}) -- create the model with "
+                f"num_{'betas' if name == 'betas' else 'expression_coeffs'}={n} to keep them",
+            )
+        return value[..., :width]
+    if n < width:
+        pad = np.zeros(value.shape[:-1] + (width - n,), dtype=value.dtype)
+        return np.concatenate([value, pad], axis=-1)
+    return value
+
+
+def _single_shape(name: str, value: Any, width: int, notes: list[str]) -> np.ndarray:
+    """One coefficient vector from (S,), (1, S) or (T, S) with identical rows."""
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.ndim == 1:
+        arr = arr[None]
+    if arr.ndim != 2:
+        raise ShapeError(f"{name}: expected shape (S,) or (1, S), got {arr.shape}")
+    if arr.shape[0] > 1 and not np.allclose(arr, arr[:1], rtol=0, atol=1e-9):
+        raise ShapeError(
+            f"{name}: a rigged export has one body shape, but the {arr.shape[0]} rows of {name} "
+            "differ; export one shape at a time"
+        )
+    return _fit_width(name, arr[0], width, notes)
+
+
+def _frames_of(params: Mapping[str, np.ndarray]) -> int:
+    sizes = {k: v.shape[0] for k, v in params.items() if v.ndim > 1}
+    frames = max(sizes.values(), default=1)
+    for k, n in sizes.items():
+        if n not in (1, frames):
+            raise ShapeError(
+                f"{k}: {n} frames do not match the {frames} frames of the other parameters "
+                f"(sizes: {sizes}); give 1 or {frames}"
+            )
+    return frames
+
+
+def prepare_animation(
+    model: Any, source: Any, *, fps: float | None = None, progress: Progress | None = None
+) -> Animation:
+    """Turn ``source`` into an :class:`Animation` of ``model`` (a :class:`smplcore.BodyModel`).
+
+    Parameters
+    ----------
+    model : the body model; its ``num_betas`` decides how many shape coefficients are used (more in the
+        input are dropped with a warning, fewer are padded with zeros).
+    source : a :class:`~smplcore.motion.Motion`; a path (see :func:`load_input`); a dict with ``poses``
+        (and ``trans``, ``betas``, ``mocap_framerate``: AMASS arrays); or a dict of model keyword arguments
+        (``betas``, ``expression``, ``transl`` and pose blocks such as ``global_orient``/``body_pose``),
+        each (n,) / (1, n) for one frame or (T, n) for T frames. Parameter sets go through the model, so
+        PCA hands and the model's mean hand pose apply as in ``model(**params)``. Motion poses are full
+        axis-angle poses, hands included (never PCA), plus the model's mean hand pose -- AMASS hand poses
+        are absolute, so create the model with ``flat_hand_mean=True`` for them.
+    fps : frame rate; overrides the motion's (default: the motion's, or 30 for parameter sets).
+    progress : called with the number of frames processed, e.g. ``tqdm(total=T).update``.
+    """
+    from smplcore.motion import Motion
+
+    notes: list[str] = []
+    if isinstance(source, (str, Path)):
+        source = load_input(source)
+    if isinstance(source, Mapping) and "poses" in source:
+        source = _motion_from_arrays(source, fps=fps)
+    if isinstance(source, Motion):
+        rotations, transl, betas, expression, rate, origin = _from_motion(model, source, notes, progress)
+    elif isinstance(source, Mapping):
+        rotations, transl, betas, expression, origin = _from_params(model, source, notes, progress)
+        rate = next(
+            (
+                float(np.asarray(source[k]).reshape(-1)[0])
+                for k in ("fps", "mocap_framerate", "mocap_frame_rate")
+                if k in source
+            ),
+            DEFAULT_FPS,
+        )
+    else:
+        raise TypeError(
+            f"source: expected a Motion, a path or a dict of parameter arrays, got {type(source).__name__}"
+        )
+    if fps is not None:
+        rate = float(fps)
+    if not (np.isfinite(rate) and rate > 0):
+        raise ValueError(f"fps: expected a positive frame rate, got {rate}")
+
+    base_expression = None
+    if expression is not None:
+        constant = np.allclose(expression, expression[:1], rtol=0, atol=0)
+        base_expression = expression[0].copy() if constant else np.zeros(expression.shape[1])
+    rest_vertices, rest_joints = model.rest_pose(betas, base_expression)
+    rest_vertices = np.asarray(rest_vertices, dtype=np.float64)
+    rest_joints = np.asarray(rest_joints, dtype=np.float64)
+    if expression is not None and base_expression is not None and not constant:
+        regressor = np.asarray(model.setup.data.J_regressor, dtype=np.float64)
+        joint_dirs = np.einsum("jv,vdk->kjd", regressor, np.asarray(model.setup.exprdirs, np.float64))
+        moved = np.einsum("tk,kjd->tjd", expression - base_expression, joint_dirs)
+        shift = float(np.linalg.norm(moved, axis=-1).max())
+        if shift > 1e-6:
+            notes.append(
+                f"expression moves the model's rest joints by up to {shift * 1000:.2f} mm; the exported "
+                "skeleton uses the joints of the neutral expression"
+            )
+    return Animation(
+        rotations=rotations,
+        transl=transl,
+        rest_joints=rest_joints,
+        rest_vertices=rest_vertices,
+        faces=np.asarray(model.faces),
+        weights=np.asarray(model.skinning_weights, dtype=np.float64),
+        parents=np.asarray(model.parents),
+        joint_names=list(model.skeleton_joint_names),
+        fps=rate,
+        betas=betas,
+        expression=expression,
+        base_expression=base_expression,
+        model_type=model.model_type,
+        source=origin,
+        notes=notes,
+    )
+
+
+def _from_motion(model: Any, motion: Any, notes: list[str], progress: Progress | None):
+    from smplcore.engine.rotations import rodrigues
+
+    names = list(model.skeleton_joint_names)
+    source_names = _joint_names_of(motion.model_type)
+    if not set(names) & set(source_names):
+        raise ValueError(f"the {motion.model_type} motion shares no joints with the {model.model_type} model")
+    params = motion.model_params(model.model_type, names)
+    frames = motion.num_frames
+    full = np.concatenate(
+        [np.asarray(params[b], np.float64).reshape(frames, -1) for b in model.pose_blocks], axis=1
+    )
+    full = full + np.asarray(model.setup.pose_mean, np.float64)  # zeros unless the hand mean is not flat
+    rotations = np.empty((frames, len(names), 3, 3))
+    for start in range(0, frames, _CHUNK):
+        stop = min(start + _CHUNK, frames)
+        rotations[start:stop] = rodrigues(full[start:stop].reshape(stop - start, -1, 3))
+        if progress is not None:
+            progress(stop - start)
+    betas = _fit_width("betas", np.asarray(motion.betas, np.float64).reshape(-1), model.num_betas, notes)
+    expression = None
+    if model.num_expression_coeffs:
+        expr = params.get("expression")
+        expression = (
+            np.zeros((frames, model.num_expression_coeffs))
+            if expr is None
+            else _fit_width("expression", np.asarray(expr, np.float64), model.num_expression_coeffs, notes)
+        )
+    return rotations, np.asarray(motion.trans, np.float64), betas, expression, motion.fps, motion.source
+
+
+def _joint_names_of(model_type: str) -> list[str]:
+    from smplcore.family.specs import get_spec
+
+    return list(get_spec(model_type).joint_names)
+
+
+def _from_params(model: Any, source: Mapping[str, Any], notes: list[str], progress: Progress | None):
+    allowed = set(model.pose_blocks) | {"betas", "expression", "transl"}
+    meta = {"fps", "mocap_framerate", "mocap_frame_rate", "gender", "model_type", "surface_model_type"}
+    unknown = sorted(set(source) - allowed - meta)
+    if unknown:
+        _notify(notes, f"ignoring parameter(s) {unknown}: a {model.model_type} model takes {sorted(allowed)}")
+    params = {k: np.asarray(v, dtype=np.float64) for k, v in source.items() if k in allowed and v is not None}
+    for k, v in params.items():
+        if v.ndim == 1 or v.ndim == 0:
+            params[k] = v.reshape(1, -1)
+    betas = _single_shape("betas", params.pop("betas", np.zeros(model.num_betas)), model.num_betas, notes)
+    expression = None
+    if model.num_expression_coeffs:
+        expr = params.pop("expression", None)
+        if expr is not None:
+            expression = _fit_width(
+                "expression", expr.reshape(expr.shape[0], -1), model.num_expression_coeffs, notes
+            )
+    else:
+        params.pop("expression", None)
+    frames = _frames_of({**params, **({} if expression is None else {"expression": expression})})
+    transl = params.pop("transl", np.zeros((1, 3))).reshape(-1, 3)
+    if transl.shape[0] not in (1, frames):
+        raise ShapeError(f"transl: expected shape ({frames}, 3) or (1, 3), got {transl.shape}")
+    transl = np.broadcast_to(transl, (frames, 3)).copy()
+    if expression is not None:
+        expression = np.broadcast_to(expression, (frames, expression.shape[1])).copy()
+    rotations = np.empty((frames, len(model.skeleton_joint_names), 3, 3))
+    for start in range(0, frames, _CHUNK):
+        stop = min(start + _CHUNK, frames)
+        chunk = {k: (v[start:stop] if v.shape[0] == frames and frames > 1 else v) for k, v in params.items()}
+        out = model(betas=betas[None], return_verts=False, **chunk)
+        rot = np.asarray(out.rotmats, dtype=np.float64)
+        rotations[start:stop] = np.broadcast_to(rot, (stop - start,) + rot.shape[1:])
+        if progress is not None:
+            progress(stop - start)
+    if expression is None and model.num_expression_coeffs:
+        expression = np.zeros((frames, model.num_expression_coeffs))
+    return rotations, transl, betas, expression, "<parameters>"
+
+
+# --------------------------------------------------------------------------------------------------
+# Skinning helpers
+
+
+def top_k_weights(weights: np.ndarray, k: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The ``k`` largest weights of each vertex, renormalised to sum to one.
+
+    Returns
+    -------
+    joints : (V, k) joint indices, largest weight first; unused slots (weight 0) hold joint 0.
+    values : (V, k) float64 weights summing to one per vertex.
+    dropped : (V,) weight mass removed before renormalising.
+    """
+    w = np.clip(np.asarray(weights, dtype=np.float64), 0.0, None)
+    order = np.argsort(-w, axis=1, kind="stable")[:, :k]
+    values = np.take_along_axis(w, order, axis=1)
+    total = w.sum(axis=1)
+    kept = values.sum(axis=1)
+    if np.any(kept <= 0):
+        raise ValueError(f"weights: {int(np.sum(kept <= 0))} vertices have no skinning weight")
+    values = values / kept[:, None]
+    joints = np.where(values > 0, order, 0)
+    return joints.astype(np.int64), values, total - kept
+
+
+def _weight_matrix(joints: np.ndarray, values: np.ndarray, num_joints: int) -> np.ndarray:
+    out = np.zeros((joints.shape[0], num_joints))
+    np.add.at(
+        out, (np.repeat(np.arange(joints.shape[0]), joints.shape[1]), joints.reshape(-1)), values.reshape(-1)
+    )
+    return out
+
+
+def lbs(vertices: np.ndarray, matrices: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Linear blend skinning of rest ``vertices`` (V, 3) with (T, J, 3, 4) ``matrices`` and (V, J)
+    ``weights``: (T, V, 3)."""
+    blended = np.einsum("vj,tjab->tvab", weights, matrices)
+    return (blended[..., :3] @ vertices[..., None])[..., 0] + blended[..., 3]
+
+
+def truncation_error(
+    anim: Animation, joints: np.ndarray, values: np.ndarray, progress: Progress | None = None
+) -> dict[str, float | int]:
+    """How far vertices move when skinned with the truncated weights instead of the full ones, over
+    every frame of ``anim``: ``max``, ``mean`` (over all vertices and frames, metres), ``affected``
+    (vertices that lost weight) and ``max_dropped`` (largest weight mass removed)."""
+    full = anim.weights / anim.weights.sum(axis=1, keepdims=True)
+    kept = _weight_matrix(joints, values, anim.num_joints)
+    delta = full - kept
+    affected = np.flatnonzero(np.abs(delta).max(axis=1) > 1e-12)
+    stats = {
+        "max": 0.0,
+        "mean": 0.0,
+        "affected": int(affected.size),
+        "max_dropped": float(np.clip(delta, 0, None).sum(axis=1).max()),
+    }
+    if affected.size == 0:
+        if progress is not None:
+            progress(anim.num_frames)
+        return stats
+    verts = anim.rest_vertices[affected]
+    total, worst = 0.0, 0.0
+    for start in range(0, anim.num_frames, _CHUNK):
+        stop = min(start + _CHUNK, anim.num_frames)
+        mats = anim.skinning_matrices(slice(start, stop))
+        diff = np.linalg.norm(
+            lbs(verts, mats, delta[affected]), axis=-1
+        )  # translations cancel: rows sum to 0
+        total += float(diff.sum())
+        worst = max(worst, float(diff.max()))
+        if progress is not None:
+            progress(stop - start)
+    stats["max"] = worst
+    stats["mean"] = total / (anim.num_frames * anim.rest_vertices.shape[0])
+    return stats
+
+
+def pose_corrective_error(model: Any, anim: Animation) -> float | None:
+    """Largest vertex displacement the model's pose correctives cause over the frames of ``anim``
+    (None when the model has none): what a rig without them cannot show."""
+    posedirs = getattr(model.setup.data, "posedirs", None)
+    if posedirs is None or not np.any(posedirs):
+        return None
+    posedirs = np.asarray(posedirs, dtype=np.float64)
+    basis = posedirs.reshape(posedirs.shape[0] * 3, -1).T  # (P, V * 3)
+    worst = 0.0
+    weights = anim.weights
+    for start in range(0, anim.num_frames, 64):
+        stop = min(start + 64, anim.num_frames)
+        rot = anim.rotations[start:stop]
+        features = (rot[:, 1:] - np.eye(3)).reshape(stop - start, -1)  # R_j - I of every joint but the root
+        offsets = (features @ basis).reshape(stop - start, -1, 3)
+        world_rot, _ = anim.world_transforms(slice(start, stop))
+        blended = np.einsum("vj,tjab->tvab", weights, world_rot)
+        moved = (blended @ offsets[..., None])[..., 0]
+        worst = max(worst, float(np.linalg.norm(moved, axis=-1).max()))
+    return worst

@@ -1,0 +1,418 @@
+"""Rigged, animated bodies as glTF 2.0 binary (``.glb``), written with pygltflib.
+
+The file holds one scene with
+
+* a skeleton: one node per model joint (named after it), children nested as in the model's kinematic
+  tree; rest transforms are translations ``joint - parent joint`` with identity rotation (the root node:
+  its rest position), i.e. the shaped body's rest pose in SMPL's frame, which is also glTF's (Y up,
+  metres, the body facing +Z);
+* a skinned mesh (node ``body``): the shaped rest mesh with smooth normals, ``JOINTS_0``/``WEIGHTS_0``
+  holding the top 4 skinning weights of each vertex, renormalised (``influences=8`` adds a second set;
+  Blender reads it, three.js only the first), and inverse bind matrices ``translate(-rest joint)``;
+* one animation: a rotation channel (unit quaternions x, y, z, w, sign-continuous, linear = slerp) for
+  every joint and a translation channel for the root (rest root joint + ``transl``), keyed at the
+  sequence's frame rate (times ``k / fps``);
+* optionally morph targets (``morph_targets=True``): one per shape coefficient (``beta_0``, ...) and,
+  for models with expressions, one per expression coefficient (``expr_0``, ...), named in
+  ``mesh.extras.targetNames``. The body shape is baked into the base mesh, so shape targets rest at
+  weight 0 (they are edits relative to the exported body; the skeleton does not follow them);
+  expression weights are animated as the difference to the expression baked into the base mesh.
+
+glTF skinning then reproduces the model's linear blend skinning without pose correctives: exactly
+(to float32) with all weights kept, and within the error :class:`ExportReport` gives for the top-4
+truncation.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from smplcore.export.animation import (
+    Animation,
+    ExportReport,
+    Progress,
+    pose_corrective_error,
+    prepare_animation,
+    top_k_weights,
+    truncation_error,
+)
+
+__all__ = ["save_glb"]
+
+_FLOAT, _UBYTE, _USHORT, _UINT = 5126, 5121, 5123, 5125
+_ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
+_TYPES = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4", 16: "MAT4"}
+_DTYPES = {_FLOAT: np.float32, _UBYTE: np.uint8, _USHORT: np.uint16, _UINT: np.uint32}
+
+
+class _Builder:
+    """Accumulates one binary buffer and the buffer views and accessors pointing into it."""
+
+    def __init__(self, gltf: Any) -> None:
+        self.gltf = gltf
+        self.blob = bytearray()
+
+    def accessor(
+        self,
+        array: np.ndarray,
+        component: int,
+        *,
+        target: int | None = None,
+        bounds: bool = False,
+        normalized: bool = False,
+        name: str | None = None,
+    ) -> int:
+        import pygltflib
+
+        arr = np.ascontiguousarray(array, dtype=_DTYPES[component])
+        count = arr.shape[0]
+        width = int(np.prod(arr.shape[1:])) if arr.ndim > 1 else 1
+        while len(self.blob) % 4:
+            self.blob.append(0)
+        offset = len(self.blob)
+        data = arr.tobytes()
+        self.blob.extend(data)
+        self.gltf.bufferViews.append(
+            pygltflib.BufferView(buffer=0, byteOffset=offset, byteLength=len(data), target=target)
+        )
+        flat = arr.reshape(count, width)
+        kwargs: dict[str, Any] = {}
+        if bounds:
+            kind = float if component == _FLOAT else int
+            kwargs = {"min": [kind(v) for v in flat.min(axis=0)], "max": [kind(v) for v in flat.max(axis=0)]}
+        self.gltf.accessors.append(
+            pygltflib.Accessor(
+                bufferView=len(self.gltf.bufferViews) - 1,
+                componentType=component,
+                count=count,
+                type=_TYPES[width],
+                normalized=normalized or None,
+                name=name,
+                **kwargs,
+            )
+        )
+        return len(self.gltf.accessors) - 1
+
+
+def _vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area-weighted unit vertex normals (float32); vertices no face uses get +Y."""
+    tri = vertices[faces]
+    face_n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    normals = np.zeros_like(vertices)
+    for k in range(3):
+        np.add.at(normals, faces[:, k], face_n)
+    length = np.linalg.norm(normals, axis=1)
+    normals[length <= 1e-20] = (0.0, 1.0, 0.0)
+    normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+    normals = normals.astype(np.float32)
+    return normals / np.linalg.norm(normals, axis=1, keepdims=True)
+
+
+def _float32_weights(values: np.ndarray) -> np.ndarray:
+    """Weights as float32 whose rows sum to one as closely as float32 allows."""
+    w = values.astype(np.float32)
+    residual = (1.0 - w.astype(np.float64).sum(axis=1)).astype(np.float32)
+    rows = np.arange(w.shape[0])
+    w[rows, 0] += residual  # the largest weight absorbs the rounding
+    return w
+
+
+def quaternions(rotations: np.ndarray) -> np.ndarray:
+    """(T, J, 3, 3) rotation matrices -> (T, J, 4) unit quaternions (x, y, z, w), sign-continuous in time
+    (each frame's quaternion in the same hemisphere as the previous frame's; the first with w >= 0)."""
+    from scipy.spatial.transform import Rotation
+
+    frames, joints = rotations.shape[:2]
+    q = Rotation.from_matrix(rotations.reshape(-1, 3, 3)).as_quat().reshape(frames, joints, 4)
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    q[0] *= np.where(q[0, :, 3:] < 0, -1.0, 1.0)
+    if frames > 1:
+        flips = np.where(np.einsum("tjk,tjk->tj", q[1:], q[:-1]) < 0, -1.0, 1.0)
+        q[1:] *= np.cumprod(flips, axis=0)[..., None]
+    return q
+
+
+def save_glb(
+    path: str | Path,
+    model: Any,
+    source: Any,
+    *,
+    fps: float | None = None,
+    morph_targets: bool = False,
+    influences: int = 4,
+    vertex_colors: Any = None,
+    name: str | None = None,
+    progress: Progress | None = None,
+) -> ExportReport:
+    """Write ``source`` on ``model`` as a rigged, animated glTF 2.0 binary.
+
+    Parameters
+    ----------
+    path : the ``.glb`` to write (parent folders are created).
+    model : a :class:`smplcore.BodyModel`.
+    source : a :class:`~smplcore.motion.Motion`, a motion or parameter file, a dict of parameter arrays
+        (one set or T frames), or an :class:`~smplcore.export.animation.Animation` (see
+        :func:`~smplcore.export.animation.prepare_animation`).
+    fps : frame rate (default: the motion's, 30 for parameter sets).
+    morph_targets : add shape (and expression) components as morph targets (see the module docs).
+    influences : joint weights kept per vertex, 4 (``JOINTS_0``/``WEIGHTS_0``, read by every viewer) or 8
+        (adds ``JOINTS_1``/``WEIGHTS_1``).
+    vertex_colors : optional (V, 3|4) colours (floats in [0, 1] or uint8), written as ``COLOR_0``, e.g.
+        :func:`smplcore.export.weight_colors` of the skinning weights.
+    name : name of the animation (default: the input file's stem, or ``"motion"``).
+    progress : called with numbers of frames processed (two passes: preparing, measuring the skin error;
+        a third for models with pose correctives).
+
+    Returns
+    -------
+    :class:`ExportReport` with the top-4 truncation error (max / mean vertex displacement against
+    full-weight skinning over all frames) and, for models with pose correctives, what they would add.
+    """
+    try:
+        import pygltflib
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise RuntimeError(
+            f"save_glb needs pygltflib ({exc}); install it with `pip install 'smplcore[export]'`"
+        ) from exc
+
+    if influences not in (4, 8):
+        raise ValueError(f"influences: expected 4 or 8, got {influences!r}")
+    anim = (
+        source
+        if isinstance(source, Animation)
+        else prepare_animation(model, source, fps=fps, progress=progress)
+    )
+    if fps is not None and isinstance(source, Animation):
+        anim = dataclasses.replace(anim, fps=float(fps))
+    path = Path(path)
+    if path.suffix.lower() != ".glb":
+        raise ValueError(f"path: expected a .glb file, got {str(path)!r}")
+    notes = list(anim.notes)
+    num_joints, num_verts = anim.num_joints, anim.rest_vertices.shape[0]
+
+    joints_idx, values, _ = top_k_weights(anim.weights, influences)
+    err = truncation_error(anim, joints_idx, values, progress=progress)
+    corrective = pose_corrective_error(model, anim) if getattr(model, "has_pose_correctives", False) else None
+    if corrective is not None:
+        if progress is not None:
+            progress(anim.num_frames)
+        message = (
+            f"the {model.model_type} model has pose-corrective blend shapes, which glTF skinning cannot "
+            f"express: the exported body differs from the model by up to {corrective * 1000:.1f} mm "
+            "(it matches the model evaluated without pose correctives)"
+        )
+        notes.append(message)
+        warnings.warn(message, stacklevel=2)
+
+    gltf = pygltflib.GLTF2()
+    gltf.asset = pygltflib.Asset(version="2.0", generator=f"smplcore {_version()} (pygltflib)")
+    build = _Builder(gltf)
+
+    # Skeleton: node j is joint j; the mesh node comes after the joints.
+    offsets = anim.offsets
+    for j, joint_name in enumerate(anim.joint_names):
+        gltf.nodes.append(
+            pygltflib.Node(
+                name=joint_name,
+                translation=[float(v) for v in offsets[j]],
+                children=[int(c) for c in np.flatnonzero(anim.parents == j)] or None,
+            )
+        )
+    mesh_node = num_joints
+
+    # Mesh.
+    verts = anim.rest_vertices.astype(np.float32)
+    faces = np.asarray(anim.faces)
+    attributes: dict[str, int] = {
+        "POSITION": build.accessor(verts, _FLOAT, target=_ARRAY_BUFFER, bounds=True, name="positions"),
+        "NORMAL": build.accessor(
+            _vertex_normals(anim.rest_vertices, faces), _FLOAT, target=_ARRAY_BUFFER, name="normals"
+        ),
+    }
+    joint_type = _UBYTE if num_joints <= 256 else _USHORT
+    w32 = _float32_weights(values)
+    for s in range(influences // 4):
+        cols = slice(4 * s, 4 * s + 4)
+        attributes[f"JOINTS_{s}"] = build.accessor(
+            joints_idx[:, cols], joint_type, target=_ARRAY_BUFFER, name=f"joints_{s}"
+        )
+        attributes[f"WEIGHTS_{s}"] = build.accessor(
+            w32[:, cols], _FLOAT, target=_ARRAY_BUFFER, name=f"weights_{s}"
+        )
+    if vertex_colors is not None:
+        from smplcore.export.mesh import _check_vertex_colors
+
+        attributes["COLOR_0"] = build.accessor(
+            _check_vertex_colors(vertex_colors, num_verts),
+            _UBYTE,
+            target=_ARRAY_BUFFER,
+            normalized=True,
+            name="colors",
+        )
+    index_type = _USHORT if num_verts < 65535 else _UINT
+    indices = build.accessor(faces.reshape(-1), index_type, target=_ELEMENT_ARRAY_BUFFER, name="indices")
+
+    target_names: list[str] = []
+    targets: list[dict[str, int]] = []
+    expression_slot = None
+    if morph_targets:
+        setup = model.setup
+        shape_dirs = np.asarray(setup.shapedirs, dtype=np.float64)
+        for k in range(shape_dirs.shape[2]):
+            target_names.append(f"beta_{k}")
+            targets.append(
+                {
+                    "POSITION": build.accessor(
+                        shape_dirs[:, :, k], _FLOAT, target=_ARRAY_BUFFER, bounds=True, name=f"beta_{k}"
+                    )
+                }
+            )
+        expr_dirs = np.asarray(setup.exprdirs, dtype=np.float64)
+        if expr_dirs.shape[2] and anim.expression is not None:
+            expression_slot = len(targets)
+            for k in range(expr_dirs.shape[2]):
+                target_names.append(f"expr_{k}")
+                targets.append(
+                    {
+                        "POSITION": build.accessor(
+                            expr_dirs[:, :, k], _FLOAT, target=_ARRAY_BUFFER, bounds=True, name=f"expr_{k}"
+                        )
+                    }
+                )
+    elif anim.expression_varies:
+        message = (
+            "the input's expression changes over time, which needs morph targets: pass morph_targets=True "
+            "(--morph-targets); the mesh shows the neutral expression"
+        )
+        notes.append(message)
+        warnings.warn(message, stacklevel=2)
+
+    primitive = pygltflib.Primitive(
+        attributes=pygltflib.Attributes(**attributes),
+        indices=indices,
+        material=0,
+        mode=pygltflib.TRIANGLES,
+        targets=[pygltflib.Attributes(**t) for t in targets] or None,
+    )
+    mesh_weights = None
+    if targets:
+        mesh_weights = [0.0] * len(targets)
+    gltf.meshes.append(
+        pygltflib.Mesh(
+            name=f"{anim.model_type}_body",
+            primitives=[primitive],
+            weights=mesh_weights,
+            extras={"targetNames": target_names} if targets else {},
+        )
+    )
+    gltf.materials.append(
+        pygltflib.Material(
+            name="body",
+            pbrMetallicRoughness=pygltflib.PbrMetallicRoughness(
+                baseColorFactor=[0.8, 0.72, 0.66, 1.0], metallicFactor=0.0, roughnessFactor=0.7
+            ),
+        )
+    )
+
+    # Skin: joint j of the skin is node j; inverse bind matrices translate(-rest joint), column-major.
+    ibm = np.tile(np.eye(4), (num_joints, 1, 1))
+    ibm[:, :3, 3] = -anim.rest_joints
+    ibm_accessor = build.accessor(
+        np.ascontiguousarray(ibm.transpose(0, 2, 1)).reshape(num_joints, 16),
+        _FLOAT,
+        name="inverse_bind_matrices",
+    )
+    gltf.skins.append(
+        pygltflib.Skin(
+            name="skeleton", joints=list(range(num_joints)), skeleton=0, inverseBindMatrices=ibm_accessor
+        )
+    )
+    gltf.nodes.append(pygltflib.Node(name="body", mesh=0, skin=0))
+    gltf.scenes.append(pygltflib.Scene(name=anim.model_type, nodes=[0, mesh_node]))
+    gltf.scene = 0
+
+    # Animation.
+    frames = anim.num_frames
+    times = (np.arange(frames, dtype=np.float64) / anim.fps).astype(np.float32)
+    time_accessor = build.accessor(times, _FLOAT, bounds=True, name="time")
+    quats = quaternions(anim.rotations).astype(np.float32)
+    samplers, channels = [], []
+
+    def add_channel(node: int, path_name: str, output: int) -> None:
+        samplers.append(
+            pygltflib.AnimationSampler(input=time_accessor, output=output, interpolation="LINEAR")
+        )
+        channels.append(
+            pygltflib.AnimationChannel(
+                sampler=len(samplers) - 1, target=pygltflib.AnimationChannelTarget(node=node, path=path_name)
+            )
+        )
+
+    add_channel(0, "translation", build.accessor(anim.root_positions, _FLOAT, name="root_translation"))
+    for j in range(num_joints):
+        add_channel(
+            j, "rotation", build.accessor(quats[:, j], _FLOAT, name=f"rotation_{anim.joint_names[j]}")
+        )
+    if expression_slot is not None and anim.expression_varies:
+        weights = np.zeros((frames, len(targets)))
+        weights[:, expression_slot:] = anim.expression - anim.base_expression
+        add_channel(mesh_node, "weights", build.accessor(weights.reshape(-1), _FLOAT, name="morph_weights"))
+    animation_name = name or (
+        Path(anim.source).stem if anim.source and not anim.source.startswith("<") else "motion"
+    )
+    gltf.animations.append(pygltflib.Animation(name=animation_name, samplers=samplers, channels=channels))
+
+    report = ExportReport(
+        path=path,
+        format="glb",
+        num_frames=frames,
+        fps=anim.fps,
+        num_joints=num_joints,
+        num_vertices=num_verts,
+        influences=influences,
+        max_model_influences=int((anim.weights > 0).sum(axis=1).max()),
+        top4_max_error=err["max"],
+        top4_mean_error=err["mean"],
+        top4_vertices_affected=err["affected"],
+        top4_max_dropped_weight=err["max_dropped"],
+        pose_corrective_max=corrective,
+        morph_targets=target_names,
+        warnings=notes,
+    )
+    gltf.asset.extras = {
+        "smplcore": {
+            "model_type": anim.model_type,
+            "fps": anim.fps,
+            "frames": frames,
+            "betas": [float(b) for b in anim.betas],
+            "joint_names": anim.joint_names,
+            "skin_influences": influences,
+            "skin_truncation_max_error_m": err["max"],
+            "skin_truncation_mean_error_m": err["mean"],
+            "pose_correctives_exported": False,
+            "pose_corrective_max_m": corrective,
+        }
+    }
+
+    while len(build.blob) % 4:
+        build.blob.append(0)
+    gltf.buffers.append(pygltflib.Buffer(byteLength=len(build.blob)))
+    gltf.set_binary_blob(bytes(build.blob))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    gltf.save_binary(str(path))
+    report.file_size = path.stat().st_size
+    return report
+
+
+def _version() -> str:
+    try:
+        from smplcore import __version__
+
+        return __version__
+    except ImportError:  # pragma: no cover
+        return "?"
