@@ -74,7 +74,7 @@ def lbs(betas: Any, pose: Any, v_template: Any, shapedirs: Any, posedirs: Any, J
     v_posed = v_shaped + (pose_features(rot_mats) @ posedirs).reshape(batch, -1, 3)
     tree = KinematicTree.from_parents(_parents_list(parents))
     world_rot, world_pos = world_transforms(rot_mats, joints, tree)
-    verts = skin(v_posed, skinning_transforms(world_rot, world_pos, joints), lbs_weights)
+    verts = skin(v_posed.mT, skinning_transforms(world_rot, world_pos, joints), lbs_weights.T)
     return verts, world_pos
 
 

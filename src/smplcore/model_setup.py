@@ -278,7 +278,7 @@ def evaluate(setup: ModelSetup, arrays: engine.BodyArrays, params: dict[str, Any
 
     Returns
     -------
-    dict with ``vertices`` (B, V, 3) or None, ``joints`` (B, J', 3) before translation, ``transl``
+    dict with ``vertices`` (B, V, 3) (translated) or None, ``joints`` (B, J', 3) before translation, ``transl``
     (B, 3) or None, ``full_pose`` ((B, 3 J) axis-angle or (B, J, 3, 3) matrices), ``betas``,
     ``expression``, ``rotmats`` and the pose blocks as used (hand PCA turned into axis-angle).
     """
@@ -334,14 +334,15 @@ def evaluate(setup: ModelSetup, arrays: engine.BodyArrays, params: dict[str, Any
         rotmats = rodrigues(full_pose.reshape(batch, -1, 3))
     out["rotmats"] = rotmats
 
-    verts, joints, transforms = engine.forward(coeffs, rotmats, arrays, vertices=vertices)
+    transl = given.get("transl")
+    transl = None if transl is None else _rows("transl", transl, batch, 3)
+    verts, joints, transforms = engine.forward(coeffs, rotmats, arrays, vertices=vertices, translation=transl)
     parts = [joints]
     if setup.keypoints.ids.size:
-        parts += _keypoints(setup, arrays, coeffs, rotmats, transforms, verts)
+        parts += _keypoints(setup, arrays, coeffs, rotmats, transforms, verts, transl)
     out["joints"] = xp.concat(parts, axis=1) if len(parts) > 1 else joints
     out["vertices"] = verts
-    transl = given.get("transl")
-    out["transl"] = None if transl is None else _rows("transl", transl, batch, 3)
+    out["transl"] = transl
     return out
 
 
@@ -385,14 +386,17 @@ class Keypoints:
 
 
 def _keypoints(setup: ModelSetup, arrays: engine.BodyArrays, coeffs: Any, rotmats: Any, transforms: Any,
-               verts: Any | None) -> list[Any]:
-    """Extra vertex joints, static landmarks and the dynamic contour, in smplx's order."""
+               verts: Any | None, transl: Any | None) -> list[Any]:
+    """Extra vertex joints, static landmarks and the dynamic contour, in smplx's order (untranslated)."""
     kp, d = setup.keypoints, setup.data
     if verts is None:  # joints only: pose just the vertices the keypoints use
         verts = _pose_vertex_subset(setup, coeffs, rotmats, transforms, arrays)
         prefix = "local_"
     else:
         prefix = ""
+        if transl is not None:
+            verts = verts[:, setup.const("kp_rows", kp.ids, verts)] - transl[:, None]
+            prefix = "local_"
     c = setup.const
     out = []
     if kp.extra.size:
@@ -414,7 +418,7 @@ def _pose_vertex_subset(setup: ModelSetup, coeffs: Any, rotmats: Any, transforms
     from smplcore.engine.skeleton import skin
 
     ids = setup.keypoints.ids
-    rows = setup.const("kp_rows", ids, arrays.weights)
-    cols = setup.const("kp_cols", (ids[:, None] * 3 + np.arange(3)).reshape(-1), arrays.weights)
+    rows = setup.const("kp_rows", ids, arrays.weights_t)
+    cols = setup.const("kp_cols", engine.vertex_columns(ids, arrays.weights_t.shape[1]), arrays.weights_t)
     v = engine.rest_vertices(coeffs, rotmats, arrays, columns=cols)
-    return skin(v, transforms, arrays.weights[rows])
+    return skin(v, transforms, arrays.weights_t[:, rows])

@@ -145,9 +145,8 @@ class BodyModel:
                   if k in allowed}
         out = evaluate(self.setup, self.arrays, arrays, rotation_matrices=not pose2rot, vertices=return_verts)
         verts, joints, transl = out["vertices"], out["joints"], out["transl"]
-        if transl is not None:
+        if transl is not None:  # the engine translated the vertices already
             joints = joints + transl[:, None]
-            verts = None if verts is None else verts + transl[:, None]
         return BodyOutput(vertices=verts, joints=joints, full_pose=out["full_pose"], rotmats=out["rotmats"],
                           betas=out["betas"], expression=out["expression"], transl=transl,
                           pose={name: out[name] for name in self.pose_blocks})

@@ -1,6 +1,6 @@
 """The math of the SMPL family, written once for NumPy and PyTorch."""
 
-from smplcore.engine.body import BodyArrays, forward, rest_joints, shaped_vertices
+from smplcore.engine.body import BodyArrays, forward, rest_joints, rest_vertices, shaped_vertices, vertex_columns
 from smplcore.engine.landmarks import barycentric_points, contour_rows
 from smplcore.engine.rotations import pose_features, rodrigues
 from smplcore.engine.skeleton import KinematicTree, skin, skinning_transforms, world_transforms

@@ -25,13 +25,14 @@ class BodyArrays:
 
     Attributes
     ----------
-    blend_basis : (1 + K [+ P], V * 3) rows: the template, the K shape (and expression) blend
-        shapes, then the P pose correctives when the model has any. Rest-pose vertices are
-        ``[1, coeffs, pose_features] @ blend_basis``: template, shape and pose blend in one product.
+    blend_basis : (1 + K [+ P], 3 * V) rows: the template, the K shape (and expression) blend
+        shapes, then the P pose correctives when the model has any; columns are coordinate-major
+        (all x, then all y, then all z). Rest-pose vertices are ``[1, coeffs, pose_features] @
+        blend_basis``: template, shape and pose blend in one product, laid out as (B, 3, V).
     num_coeffs : K.
     joint_template : (J, 3) rest joints of the template, ``J_regressor @ v_template``.
     joint_shape_basis : (K, J * 3) how each coefficient moves the rest joints.
-    weights : (V, J) skinning weights.
+    weights_t : (J, V) skinning weights, transposed.
     tree : the kinematic tree.
     """
 
@@ -39,7 +40,7 @@ class BodyArrays:
     num_coeffs: int
     joint_template: Any
     joint_shape_basis: Any
-    weights: Any
+    weights_t: Any
     tree: KinematicTree
 
     @classmethod
@@ -55,16 +56,16 @@ class BodyArrays:
         shapedirs = np.asarray(shapedirs, dtype=np.float64)
         J_regressor = np.asarray(J_regressor, dtype=np.float64)
         num_verts, num_coeffs = v_template.shape[0], shapedirs.shape[-1]
-        rows = [v_template.reshape(1, -1), shapedirs.reshape(num_verts * 3, num_coeffs).T]
+        rows = [v_template.T.reshape(1, -1), shapedirs.transpose(2, 1, 0).reshape(num_coeffs, 3 * num_verts)]
         if posedirs is not None and np.any(posedirs):
-            rows.append(np.asarray(posedirs).reshape(num_verts * 3, -1).T)
+            rows.append(np.asarray(posedirs).transpose(2, 1, 0).reshape(-1, 3 * num_verts))
         joint_shape = np.einsum("jv,vdk->kjd", J_regressor, shapedirs).reshape(num_coeffs, -1)
         return cls(
             blend_basis=convert(np.concatenate(rows, axis=0)),
             num_coeffs=num_coeffs,
             joint_template=convert(J_regressor @ v_template),
             joint_shape_basis=convert(joint_shape),
-            weights=convert(np.asarray(weights)),
+            weights_t=convert(np.ascontiguousarray(np.asarray(weights).T)),
             tree=KinematicTree.from_parents(parents),
         )
 
@@ -75,7 +76,7 @@ class BodyArrays:
     def map(self, fn: Callable[[Any], Any]) -> BodyArrays:
         """The same arrays with ``fn`` applied to each (e.g. a dtype or device change)."""
         return BodyArrays(fn(self.blend_basis), self.num_coeffs, fn(self.joint_template),
-                          fn(self.joint_shape_basis), fn(self.weights), self.tree)
+                          fn(self.joint_shape_basis), fn(self.weights_t), self.tree)
 
 
 def _with_one(coeffs: Any) -> Any:
@@ -84,9 +85,10 @@ def _with_one(coeffs: Any) -> Any:
 
 
 def rest_vertices(coeffs: Any, rotmats: Any | None, arrays: BodyArrays, columns: Any = None) -> Any:
-    """(B, n, 3) rest-pose vertices: template + shape blend (+ pose correctives when ``rotmats``).
+    """(B, 3, n) rest-pose vertices, one row per coordinate: template + shape blend (+ pose
+    correctives when ``rotmats`` is given).
 
-    ``columns`` selects vertex coordinates (3 per vertex) for a subset of the mesh.
+    ``columns`` (from :func:`vertex_columns`) selects a subset of the mesh's vertices.
     """
     basis = arrays.blend_basis if columns is None else arrays.blend_basis[:, columns]
     feats = _with_one(coeffs)
@@ -94,12 +96,17 @@ def rest_vertices(coeffs: Any, rotmats: Any | None, arrays: BodyArrays, columns:
         feats = namespace(coeffs).concat([feats, pose_features(rotmats)], axis=1)
     else:
         basis = basis[: 1 + arrays.num_coeffs]
-    return (feats @ basis).reshape(coeffs.shape[0], -1, 3)
+    return (feats @ basis).reshape(coeffs.shape[0], 3, -1)
+
+
+def vertex_columns(ids: np.ndarray, num_verts: int) -> np.ndarray:
+    """Columns of ``blend_basis`` holding vertices ``ids`` (x of all, then y, then z)."""
+    return (np.arange(3)[:, None] * num_verts + np.asarray(ids)[None]).reshape(-1)
 
 
 def shaped_vertices(coeffs: Any, arrays: BodyArrays) -> Any:
     """(B, V, 3) rest-pose vertices for (B, K) shape coefficients (no pose correctives)."""
-    return rest_vertices(coeffs, None, arrays)
+    return rest_vertices(coeffs, None, arrays).mT
 
 
 def rest_joints(coeffs: Any, arrays: BodyArrays) -> Any:
@@ -108,7 +115,7 @@ def rest_joints(coeffs: Any, arrays: BodyArrays) -> Any:
     return arrays.joint_template + (coeffs @ arrays.joint_shape_basis).reshape(batch, -1, 3)
 
 
-def forward(coeffs: Any, rotmats: Any, arrays: BodyArrays, *, vertices: bool = True
+def forward(coeffs: Any, rotmats: Any, arrays: BodyArrays, *, vertices: bool = True, translation: Any = None
             ) -> tuple[Any | None, Any, Any]:
     """Posed body.
 
@@ -118,6 +125,7 @@ def forward(coeffs: Any, rotmats: Any, arrays: BodyArrays, *, vertices: bool = T
     rotmats : (B, J, 3, 3) local joint rotations.
     arrays : the model.
     vertices : build the mesh (False: joints only).
+    translation : (B, 3) added to the vertices (not to the joints or transforms), or None.
 
     Returns
     -------
@@ -131,4 +139,4 @@ def forward(coeffs: Any, rotmats: Any, arrays: BodyArrays, *, vertices: bool = T
     if not vertices:
         return None, world_pos, transforms
     v = rest_vertices(coeffs, rotmats, arrays)
-    return skin(v, transforms, arrays.weights), world_pos, transforms
+    return skin(v, transforms, arrays.weights_t, translation), world_pos, transforms

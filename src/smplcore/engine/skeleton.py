@@ -118,20 +118,38 @@ def skinning_transforms(world_rot: Any, world_pos: Any, rest_joints: Any) -> Any
     return xp.concat([world_rot.reshape(batch, num_joints, 9), translation], axis=-1)
 
 
-def skin(vertices: Any, transforms: Any, weights: Any) -> Any:
+# Bodies skinned per chunk: the per-vertex transforms of one chunk (chunk × 12 × V values) stay
+# in cache instead of streaming B × V × 12 values through memory.
+_CHUNK_VALUES = 1 << 20
+
+
+def skin(vertices: Any, transforms: Any, weights_t: Any, translation: Any = None) -> Any:
     """Linear blend skinning.
 
     Parameters
     ----------
-    vertices : (B, V, 3) rest-pose vertices (shaped, with pose correctives).
+    vertices : (B, 3, V) rest-pose vertices (shaped, with pose correctives), one row per coordinate.
     transforms : (B, J, 12) from :func:`skinning_transforms`.
-    weights : (V, J) skinning weights.
+    weights_t : (J, V) skinning weights, transposed.
+    translation : (B, 3) added to every vertex, or None.
 
     Returns
     -------
     (B, V, 3) posed vertices.
     """
-    blended = weights @ transforms  # (B, V, 12)
-    batch, num_verts = blended.shape[:2]
-    rot = blended[..., :9].reshape(batch, num_verts, 3, 3)
-    return (rot @ vertices[..., None])[..., 0] + blended[..., 9:]
+    xp = namespace(transforms)
+    batch, num_joints = transforms.shape[:2]
+    num_verts = weights_t.shape[1]
+    if translation is not None:
+        transforms = xp.concat([transforms[..., :9], transforms[..., 9:] + translation[:, None]], axis=-1)
+    per_vertex = transforms.mT.reshape(batch * 12, num_joints)  # rows: R00 R01 ... R22 tx ty tz per body
+    chunk = max(1, _CHUNK_VALUES // (12 * max(num_verts, 1)))
+    out = []
+    for start in range(0, batch, chunk):
+        stop = min(start + chunk, batch)
+        t = (per_vertex[12 * start: 12 * stop] @ weights_t).reshape(stop - start, 12, num_verts)
+        x, y, z = vertices[start:stop, 0], vertices[start:stop, 1], vertices[start:stop, 2]
+        out.append(xp.stack([t[:, 0] * x + t[:, 1] * y + t[:, 2] * z + t[:, 9],
+                             t[:, 3] * x + t[:, 4] * y + t[:, 5] * z + t[:, 10],
+                             t[:, 6] * x + t[:, 7] * y + t[:, 8] * z + t[:, 11]], axis=-1))
+    return out[0] if len(out) == 1 else xp.concat(out, axis=0)

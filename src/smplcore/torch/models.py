@@ -43,7 +43,7 @@ _SETUP_OPTIONS = {
 # Accepted for compatibility and without effect here.
 _INERT_OPTIONS = {"use_compressed", "create_vertex_joint_selector"}
 
-_ENGINE_FIELDS = ("blend_basis", "joint_template", "joint_shape_basis", "weights")
+_ENGINE_FIELDS = ("blend_basis", "joint_template", "joint_shape_basis", "weights_t")
 
 
 def _block_flag(block_name: str) -> str:
@@ -207,28 +207,31 @@ class BodyModule(nn.Module):
 
     def _engine_arrays(self) -> engine.BodyArrays:
         return engine.BodyArrays(self._engine_blend_basis, self._num_coeffs, self._engine_joint_template,
-                                 self._engine_joint_shape_basis, self._engine_weights, self._tree)
+                                 self._engine_joint_shape_basis, self._engine_weights_t, self._tree)
 
     # smplx's blend-shape buffers, as views of the engine's single basis (no second copy in memory)
+    def _basis_rows(self, start: int, stop: int) -> torch.Tensor:
+        """(n, V, 3) view of rows ``start:stop`` of the engine's coordinate-major basis."""
+        rows = self._engine_blend_basis[start:stop]
+        return rows.reshape(rows.shape[0], 3, -1).transpose(1, 2)
+
     @property
     def shapedirs(self) -> torch.Tensor:
-        """(V, 3, num_betas) shape blend shapes."""
-        rows = self._engine_blend_basis[1 : 1 + self.num_betas]
-        return rows.T.reshape(-1, 3, self.num_betas)
+        """(V, 3, num_betas) shape blend shapes (a view of the engine's basis)."""
+        return self._basis_rows(1, 1 + self.num_betas).permute(1, 2, 0)
 
     @property
     def expr_dirs(self) -> torch.Tensor:
-        """(V, 3, num_expression_coeffs) expression blend shapes (SMPL-X, FLAME)."""
-        rows = self._engine_blend_basis[1 + self.num_betas : 1 + self._num_coeffs]
-        return rows.T.reshape(-1, 3, self.num_expression_coeffs)
+        """(V, 3, num_expression_coeffs) expression blend shapes (SMPL-X, FLAME; a view)."""
+        return self._basis_rows(1 + self.num_betas, 1 + self._num_coeffs).permute(1, 2, 0)
 
     @property
     def posedirs(self) -> torch.Tensor:
         """(P, V * 3) pose correctives, as smplx stores them (zeros for a model without any)."""
-        basis = self._engine_blend_basis
-        if basis.shape[0] > 1 + self._num_coeffs:
-            return basis[1 + self._num_coeffs :]
-        return basis.new_zeros(9 * (self.J_regressor.shape[0] - 1), basis.shape[1])
+        start = 1 + self._num_coeffs
+        if self._engine_blend_basis.shape[0] > start:
+            return self._basis_rows(start, None).reshape(-1, self.get_num_verts() * 3)
+        return self.v_template.new_zeros(9 * (self.J_regressor.shape[0] - 1), self.get_num_verts() * 3)
 
     def forward_shape(self, betas: torch.Tensor | None = None) -> ModelOutput:
         """The shaped template (no pose): ``vertices == v_shaped``, (B, V, 3)."""
@@ -291,9 +294,8 @@ class BodyModule(nn.Module):
             joints = (self.joint_mapper(joints=joints, vertices=vertices) if self.MAPPER_TAKES_VERTICES
                       else self.joint_mapper(joints))
         transl = out["transl"]
-        if transl is not None:
+        if transl is not None:  # the engine translated the vertices already
             joints = joints + transl[:, None]
-            vertices = None if vertices is None else vertices + transl[:, None]
         fields = {"vertices": vertices, "joints": joints, "betas": params.get("betas", out["betas"]),
                   "transl": transl, "full_pose": out["full_pose"] if return_full_pose else None}
         for block in self.SPEC.pose_blocks:
