@@ -120,7 +120,7 @@ def skinning_transforms(world_rot: Any, world_pos: Any, rest_joints: Any) -> Any
 
 # Bodies skinned per chunk: the per-vertex transforms of one chunk (chunk × 12 × V values) stay
 # in cache instead of streaming B × V × 12 values through memory.
-_CHUNK_VALUES = 1 << 20
+_CHUNK_VALUES = 1 << 22
 
 
 def skin(vertices: Any, transforms: Any, weights_t: Any, translation: Any = None) -> Any:
