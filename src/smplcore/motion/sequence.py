@@ -11,12 +11,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from smplcore.errors import ModelFileError, ShapeError
 from smplcore.family.specs import get_spec
+
+if TYPE_CHECKING:
+    from smplcore.motion.resample import ResamplePlan
 
 # Full-pose width (values per frame) of each model type.
 POSE_WIDTH = {"smpl": 72, "smplh": 156, "smplx": 165, "mano": 48, "flame": 15}
@@ -76,12 +79,35 @@ class Motion:
     def __len__(self) -> int:
         return self.num_frames
 
-    def slice(self, start: int = 0, stop: int | None = None, step: int = 1) -> "Motion":
+    def slice(self, start: int = 0, stop: int | None = None, step: int = 1) -> Motion:
         """Frames ``start:stop:step`` (the frame rate divides by ``step``)."""
         sl = np.s_[start:stop:step]
         return replace(self, poses=self.poses[sl], trans=self.trans[sl], fps=self.fps / step,
                        expression=None if self.expression is None else self.expression[sl],
                        dmpls=None if self.dmpls is None else self.dmpls[sl])
+
+    def resample(self, fps: float, method: str = "interp") -> Motion:
+        """The motion at ``fps`` frames per second.
+
+        ``method`` is ``"interp"`` (slerp of each joint's rotation, linear translation; exact
+        target rate), ``"nearest"`` (nearest source frame; exact target rate) or ``"stride"``
+        (every ``int(self.fps / fps)``-th frame, as HumanML3D; the rate becomes ``self.fps / step``).
+        See :mod:`smplcore.motion.resample`.
+        """
+        from smplcore.motion import resample as rs
+
+        p = rs.plan(self.num_frames, self.fps, fps, method)
+        return self.take(p)
+
+    def take(self, p: ResamplePlan) -> Motion:
+        """The frames of a :class:`~smplcore.motion.resample.ResamplePlan` (see :meth:`resample`)."""
+        from smplcore.motion import resample as rs
+
+        def linear(a: np.ndarray | None) -> np.ndarray | None:
+            return None if a is None else rs.apply_linear(a, p)
+
+        return replace(self, poses=rs.apply_rotations(self.poses, p), trans=linear(self.trans), fps=p.fps,
+                       expression=linear(self.expression), dmpls=linear(self.dmpls))
 
     def model_params(self, model_type: str, joint_names: list[str] | None = None) -> dict[str, np.ndarray]:
         """Keyword arguments for a model of ``model_type``: its pose blocks, ``transl`` and ``betas``.
@@ -116,6 +142,44 @@ def _text(value: Any) -> str:
     return str(item)
 
 
+# The keys a motion is made of; an AMASS file holds more (e.g. SMPL-X files repeat the pose in
+# ``root_orient``/``pose_body``/..., and hold marker data) that are not read.
+_MOTION_KEYS = ("poses", "trans", "betas", "gender", "surface_model_type", "mocap_framerate",
+                "mocap_frame_rate", "fps", "frame_rate", "expression", "dmpls")
+
+
+def _read_motion_arrays(path: Path) -> dict[str, Any]:
+    """The motion keys of an ``.npz`` (only those are read and checked), else the whole container."""
+    import io
+    import zipfile
+
+    from smplcore.io.containers import _read_npy, read_container
+    from smplcore.io.safe_pickle import UnsafePickleError
+
+    try:
+        with open(path, "rb") as fh:
+            is_zip = fh.read(4) == b"PK\x03\x04"
+    except OSError as exc:
+        raise ModelFileError(path, f"cannot read ({exc.strerror or exc})") from None
+    if not is_zip:
+        return read_container(path)
+    out: dict[str, Any] = {}
+    try:
+        with zipfile.ZipFile(path) as archive:
+            for name in archive.namelist():
+                key = name[:-4] if name.endswith(".npy") else name
+                if key in _MOTION_KEYS:
+                    with archive.open(name) as member:
+                        out[key] = _read_npy(io.BytesIO(member.read()))
+    except ModelFileError:
+        raise
+    except UnsafePickleError as exc:
+        raise ModelFileError(path, f"refused to load: {exc}; nothing in the file was run") from None
+    except Exception as exc:  # zipfile, zlib, EOF, header errors: all mean a damaged file
+        raise ModelFileError(path, f"truncated or corrupt file ({type(exc).__name__}: {exc})") from None
+    return out
+
+
 def load_motion(path: str | Path) -> Motion:
     """Read an AMASS-style ``.npz`` (SMPL+H, SMPL-X or SMPL poses) without unpickling anything.
 
@@ -124,10 +188,8 @@ def load_motion(path: str | Path) -> Motion:
     ModelFileError
         naming the file and key: missing keys, inconsistent shapes, NaNs, truncated archives.
     """
-    from smplcore.io.containers import read_container
-
     path = Path(path)
-    raw = read_container(path)
+    raw = _read_motion_arrays(path)
     for key in ("poses", "trans"):
         if key not in raw:
             raise ModelFileError(path, f"missing key; the file has {sorted(raw)}", key=key)
@@ -145,10 +207,22 @@ def load_motion(path: str | Path) -> Motion:
                              key="mocap_framerate")
     gender = _text(raw.get("gender", "neutral")).strip().lower() or "neutral"
     betas = np.asarray(raw.get("betas", np.zeros(10)), dtype=np.float64).reshape(-1)
+    if not np.isfinite(betas).all():
+        raise ModelFileError(path, "contains NaN or infinite values", key="betas")
     optional = {k: np.asarray(raw[k], dtype=np.float64) for k in ("expression", "dmpls") if k in raw}
+    for key, value in optional.items():
+        if value.ndim != 2 or value.shape[0] != poses.shape[0]:
+            raise ModelFileError(path, f"expected shape ({poses.shape[0]}, n) to match poses, "
+                                       f"found {value.shape}", key=key)
+        if not np.isfinite(value).all():
+            raise ModelFileError(path, "contains NaN or infinite values", key=key)
+    try:
+        fps = float(np.asarray(raw[fps_key], dtype=np.float64).reshape(-1)[0])
+    except (ValueError, TypeError, IndexError):
+        raise ModelFileError(path, f"expected a frame rate, found {raw[fps_key]!r}", key=fps_key) from None
     try:
         return Motion(poses=poses, trans=np.asarray(raw["trans"], dtype=np.float64), betas=betas,
-                      fps=float(np.asarray(raw[fps_key]).reshape(-1)[0]), model_type=model_type, gender=gender,
+                      fps=fps, model_type=model_type, gender=gender,
                       source=str(path), **optional)
     except (ShapeError, ValueError) as exc:
         key = str(exc).split(":")[0] if ":" in str(exc) else None
