@@ -13,10 +13,8 @@ from typing import Any
 
 import numpy as np
 
-try:  # pragma: no cover - depends on the rest of the package
-    from smplcore.errors import ShapeError as _ShapeError
-except ImportError:  # pragma: no cover
-    _ShapeError = ValueError
+from smplcore.errors import ShapeError as _ShapeError
+from smplcore.mesh_args import as_array, check_faces, check_points
 
 __all__ = ["SUPPORTED_SUFFIXES", "save_mesh", "weight_colors"]
 
@@ -24,55 +22,19 @@ __all__ = ["SUPPORTED_SUFFIXES", "save_mesh", "weight_colors"]
 SUPPORTED_SUFFIXES = (".obj", ".ply")
 
 
-def _as_array(name: str, value: Any) -> np.ndarray:
-    if value is None:
-        raise ValueError(f"{name}: expected an array, got None")
-    if hasattr(value, "toarray") and not isinstance(value, np.ndarray):  # scipy.sparse
-        value = value.toarray()
-    if hasattr(value, "detach") and hasattr(value, "cpu"):  # a torch tensor, without importing torch
-        value = value.detach().cpu().numpy()
-    try:
-        return np.asarray(value)
-    except Exception as exc:
-        raise ValueError(f"{name}: could not be converted to a NumPy array ({exc})") from exc
-
-
 def _check_vertices(vertices: Any) -> np.ndarray:
-    arr = _as_array("vertices", vertices)
+    arr = as_array("vertices", vertices)
     if arr.ndim == 3 and arr.shape[-1] == 3:
         raise _ShapeError(
             f"vertices: expected shape (V, 3), got a batch {tuple(arr.shape)}; save_mesh writes one mesh "
             "per file, e.g. `for i, v in enumerate(vertices): save_mesh(f'mesh_{i}.obj', v, faces)`"
         )
-    if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] < 1:
-        raise _ShapeError(f"vertices: expected shape (V, 3), got {tuple(arr.shape)}")
-    if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
-        raise ValueError(f"vertices: expected a float array, got dtype {arr.dtype}")
-    arr = arr.astype(np.float64, copy=False)
-    if not np.all(np.isfinite(arr)):
-        bad = int(np.count_nonzero(~np.isfinite(arr)))
-        raise ValueError(f"vertices: expected finite values, got {bad} NaN/inf value(s)")
-    return arr
-
-
-def _check_faces(faces: Any, num_vertices: int) -> np.ndarray:
-    arr = _as_array("faces", faces)
-    if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] < 1:
-        raise _ShapeError(f"faces: expected shape (F, 3) with F >= 1, got {tuple(arr.shape)}")
-    if not np.issubdtype(arr.dtype, np.integer):
-        raise ValueError(f"faces: expected an integer array, got dtype {arr.dtype}")
-    lo, hi = int(arr.min()), int(arr.max())
-    if lo < 0 or hi >= num_vertices:
-        raise ValueError(
-            f"faces: indices must be in [0, {num_vertices - 1}] for {num_vertices} vertices, "
-            f"got values in [{lo}, {hi}]"
-        )
-    return arr.astype(np.int64, copy=False)
+    return check_points("vertices", arr, "(V, 3)", ndims=(2,))
 
 
 def _check_vertex_colors(vertex_colors: Any, num_vertices: int) -> np.ndarray:
     """(V, 3|4) floats in [0, 1] or uint8 -> (V, 4) uint8."""
-    arr = _as_array("vertex_colors", vertex_colors)
+    arr = as_array("vertex_colors", vertex_colors)
     if arr.ndim != 2 or arr.shape[0] != num_vertices or arr.shape[1] not in (3, 4):
         raise _ShapeError(
             f"vertex_colors: expected shape (V={num_vertices}, 3) or (V={num_vertices}, 4), got {tuple(arr.shape)}"
@@ -124,7 +86,7 @@ def save_mesh(
             + ", ".join(SUPPORTED_SUFFIXES)
         )
     verts = _check_vertices(vertices)
-    tris = _check_faces(faces, verts.shape[0])
+    tris = check_faces(faces, verts.shape[0])
     colors = None if vertex_colors is None else _check_vertex_colors(vertex_colors, verts.shape[0])
 
     try:
@@ -180,7 +142,7 @@ def weight_colors(weights: Any) -> np.ndarray:
     Returns:
         (V, 3) uint8 RGB, ready for ``save_mesh(..., vertex_colors=...)``.
     """
-    arr = _as_array("weights", weights)
+    arr = as_array("weights", weights)
     if arr.ndim != 2 or arr.shape[0] < 1 or arr.shape[1] < 1:
         raise _ShapeError(f"weights: expected shape (V, J), got {tuple(arr.shape)}")
     if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):

@@ -21,10 +21,8 @@ from typing import Any
 
 import numpy as np
 
-try:  # pragma: no cover - depends on the rest of the package
-    from smplcore.errors import ShapeError as _ShapeError
-except ImportError:  # pragma: no cover
-    _ShapeError = ValueError
+from smplcore.errors import ShapeError as _ShapeError
+from smplcore.mesh_args import as_array, check_faces, check_points
 
 __all__ = ["CAMERAS", "render_mesh", "render_to_png", "save_png"]
 
@@ -53,57 +51,12 @@ _AMBIENT = 0.25
 # ---------------------------------------------------------------------------------------------
 
 
-def _as_array(name: str, value: Any) -> np.ndarray:
-    if value is None:
-        raise ValueError(f"{name}: expected an array, got None")
-    if hasattr(value, "detach") and hasattr(value, "cpu"):  # a torch tensor, without importing torch
-        value = value.detach().cpu().numpy()
-    try:
-        return np.asarray(value)
-    except Exception as exc:
-        raise ValueError(f"{name}: could not be converted to a NumPy array ({exc})") from exc
-
-
-def _check_points(name: str, value: Any, expected: str) -> np.ndarray:
-    """(…, 3) float array, finite, with 2 or 3 dimensions."""
-    arr = _as_array(name, value)
-    if (
-        arr.ndim not in (2, 3)
-        or arr.shape[-1] != 3
-        or arr.shape[-2] < 1
-        or (arr.ndim == 3 and arr.shape[0] < 1)
-    ):
-        raise _ShapeError(f"{name}: expected shape {expected}, got {tuple(arr.shape)}")
-    if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
-        raise ValueError(f"{name}: expected a float array, got dtype {arr.dtype}")
-    arr = arr.astype(np.float64, copy=False)
-    if not np.all(np.isfinite(arr)):
-        bad = int(np.count_nonzero(~np.isfinite(arr)))
-        raise ValueError(f"{name}: expected finite values, got {bad} NaN/inf value(s)")
-    return arr
-
-
-def _check_faces(faces: Any, num_vertices: int) -> np.ndarray:
-    arr = _as_array("faces", faces)
-    if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] < 1:
-        raise _ShapeError(f"faces: expected shape (F, 3) with F >= 1, got {tuple(arr.shape)}")
-    if not np.issubdtype(arr.dtype, np.integer):
-        raise ValueError(f"faces: expected an integer array, got dtype {arr.dtype}")
-    lo, hi = int(arr.min()), int(arr.max())
-    if lo < 0 or hi >= num_vertices:
-        raise ValueError(
-            f"faces: indices must be in [0, {num_vertices - 1}] for {num_vertices} vertices, "
-            f"got values in [{lo}, {hi}]"
-        )
-    return arr.astype(np.int64, copy=False)
-
-
 def _check_rgb(name: str, value: Any, count: int | None, allow_alpha: bool) -> np.ndarray:
     """Colour(s) as floats in [0, 1]: (3,)/(4,) or, when ``count`` is given, also (count, 3|4).
 
     Returns an array of shape (count or 1, 4) with alpha 1 where none was given.
     """
-    arr = _as_array(name, value)
+    arr = as_array(name, value)
     sizes = (3, 4) if allow_alpha else (3,)
     expected = "(3,) or (4,)" if allow_alpha else "(3,)"
     if count is not None:
@@ -304,12 +257,12 @@ def render_mesh(
         ValueError: a bad argument (the message names it, with the expected and received shape).
         RuntimeError: no offscreen OpenGL context could be created (the message says how to fix it).
     """
-    verts = _check_points("vertices", vertices, "(V, 3) or (N, V, 3)")
+    verts = check_points("vertices", vertices, "(V, 3) or (N, V, 3)")
     batched = verts.ndim == 3
     if not batched:
         verts = verts[None]
     n, num_v = verts.shape[0], verts.shape[1]
-    tris = _check_faces(faces, num_v)
+    tris = check_faces(faces, num_v)
     width = _check_size("width", width)
     height = _check_size("height", height)
     colors = _check_rgb("color", color, n if batched else None, allow_alpha=True)
@@ -327,7 +280,7 @@ def render_mesh(
 
     jts = None
     if joints is not None:
-        jts = _check_points("joints", joints, "(N, J, 3)" if batched else "(J, 3)")
+        jts = check_points("joints", joints, "(N, J, 3)" if batched else "(J, 3)")
         if jts.ndim != verts.ndim - (0 if batched else 1) or (batched and jts.shape[0] != n):
             expected = f"(N={n}, J, 3) to match vertices {tuple(verts.shape)}" if batched else "(J, 3)"
             raise _ShapeError(f"joints: expected shape {expected}, got {tuple(jts.shape)}")
@@ -430,7 +383,7 @@ def save_png(image: Any, path: str | os.PathLike) -> Path:
         from PIL import Image
     except ImportError as exc:
         raise RuntimeError(f"save_png needs Pillow ({exc}); install it with `pip install pillow`") from exc
-    arr = _as_array("image", image)
+    arr = as_array("image", image)
     if (
         not (arr.ndim == 2 or (arr.ndim == 3 and arr.shape[2] in (3, 4)))
         or arr.shape[0] < 1
