@@ -278,7 +278,8 @@ _M = np.array([-1.0, 1.0, 1.0])  # mirror x
 
 def _body(skel: _Skel, dy: float = 0.0, with_hand_joints: bool = False):
     """The 22 SMPL body joints (pelvis .. wrists) in SMPL order; returns name -> index."""
-    P = lambda x, y, z: np.array([x, y + dy, z])
+    def P(x, y, z):
+        return np.array([x, y + dy, z])
     idx = {}
 
     def pair(name, p, parent_l, parent_r, r):

@@ -10,7 +10,6 @@ import textwrap
 import warnings
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 torch = pytest.importorskip("torch")
@@ -217,7 +216,8 @@ def test_left_mano_shapedirs_fix_is_opt_in(fake_models):
     assert not torch.allclose(a, b)
 
 
-@pytest.mark.parametrize("key,cls", [("official_smpl_f_v1_0_pkl", "SMPL"), ("official_smplh_amass_neutral_npz", "SMPLH"),
+@pytest.mark.parametrize("key,cls", [("official_smpl_f_v1_0_pkl", "SMPL"),
+                                     ("official_smplh_amass_neutral_npz", "SMPLH"),
                                      ("mano_left_pkl", "MANO"), ("smplx_male_npz", "SMPLX")])
 def test_create_takes_the_model_type_from_the_file(fake_models, key, cls):
     options = {"use_pca": False} if cls == "SMPLH" else {}

@@ -121,6 +121,7 @@ def test_gradcheck_through_the_whole_model_in_float64(fake_models):
         return model(betas=betas, global_orient=pose[:, :3], hand_pose=pose[:, 3:]).joints
 
     betas = torch.randn(1, 10, dtype=torch.float64, requires_grad=True)
-    for pose in (torch.zeros(1, 48, dtype=torch.float64), torch.full((1, 48), np.pi / np.sqrt(3.0), dtype=torch.float64)):
+    half_turns = torch.full((1, 48), np.pi / np.sqrt(3.0), dtype=torch.float64)  # |θ| = π per joint
+    for pose in (torch.zeros(1, 48, dtype=torch.float64), half_turns):
         pose = pose.clone().requires_grad_(True)
         assert torch.autograd.gradcheck(f, (betas, pose), eps=1e-6, atol=1e-6)

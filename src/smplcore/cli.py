@@ -9,7 +9,6 @@ from pathlib import Path
 
 from smplcore.errors import ModelFileError, ShapeError
 
-
 # Modules that add their own subcommand: each has ``add_parser(subparsers)`` registering a parser whose
 # ``run`` default is a function ``(args) -> exit status``.
 _SUBCOMMAND_MODULES = ("smplcore.export.cli", "smplcore.motion.cli")

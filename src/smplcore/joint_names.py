@@ -1,7 +1,14 @@
 """smplx's ``joint_names`` module: names of the output joints of SMPL-X and SMPL+H, and per model."""
 
 from smplcore.family.names import (
-    EXTRA_JOINTS, FACE_CONTOUR, FACE_LANDMARKS, FLAME_JOINTS, MANO_JOINTS, SMPL_JOINTS, SMPLH_JOINTS, SMPLX_JOINTS,
+    EXTRA_JOINTS,
+    FACE_CONTOUR,
+    FACE_LANDMARKS,
+    FLAME_JOINTS,
+    MANO_JOINTS,
+    SMPL_JOINTS,
+    SMPLH_JOINTS,
+    SMPLX_JOINTS,
 )
 
 #: SMPL-X output joints with the face contour (144).

@@ -6,7 +6,8 @@ directly. They accept NumPy arrays too (the engine runs on both).
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 from smplcore.engine.backend import namespace
 from smplcore.engine.landmarks import barycentric_points, contour_rows

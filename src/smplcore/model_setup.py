@@ -89,7 +89,7 @@ class ModelSetup:
               use_pca: bool = True, num_pca_comps: int = 6, flat_hand_mean: bool = False,
               use_face_contour: bool = False, use_hands: bool = True, use_feet_keypoints: bool = True,
               vertex_ids: dict | None = None, age: str = "adult", kid_template_path: str | Path | None = None,
-              v_template: np.ndarray | None = None, owner: str = "") -> "ModelSetup":
+              v_template: np.ndarray | None = None, owner: str = "") -> ModelSetup:
         spec = get_spec(data.model_type)
         owner = owner or spec.display_name
         _check_count("num_betas", num_betas)
@@ -373,7 +373,7 @@ class Keypoints:
     local_contour_corners: np.ndarray
 
     @classmethod
-    def build(cls, data: ModelData, extra_ids: list[int], landmarks: bool, contour: bool) -> "Keypoints":
+    def build(cls, data: ModelData, extra_ids: list[int], landmarks: bool, contour: bool) -> Keypoints:
         extra = np.asarray(extra_ids, dtype=np.int64)
         corners = data.faces[data.lmk_faces_idx] if landmarks else np.zeros((0, 3), np.int64)
         contour_corners = (data.faces[data.dynamic_lmk_faces_idx] if contour

@@ -6,4 +6,5 @@ from smplcore.engine.rotations import pose_features, rodrigues
 from smplcore.engine.skeleton import KinematicTree, skin, skinning_transforms, world_transforms
 
 __all__ = ["BodyArrays", "KinematicTree", "barycentric_points", "contour_rows", "forward", "pose_features",
-           "rest_joints", "rodrigues", "shaped_vertices", "skin", "skinning_transforms", "world_transforms"]
+           "rest_joints", "rest_vertices", "rodrigues", "shaped_vertices", "skin", "skinning_transforms",
+           "vertex_columns", "world_transforms"]

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 from smplcore.engine.backend import eye, index, namespace
 from smplcore.engine.rotations import y_angle

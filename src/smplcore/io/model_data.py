@@ -94,6 +94,6 @@ class ModelData:
     def num_expression_coeffs(self) -> int:
         return 0 if self.exprdirs is None else int(self.exprdirs.shape[-1])
 
-    def replace(self, **changes) -> "ModelData":
+    def replace(self, **changes) -> ModelData:
         """A copy with some fields replaced (the data is frozen)."""
         return dataclasses.replace(self, **changes)

@@ -8,8 +8,9 @@ README's "Differences from smplx") we do the right thing instead.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import torch

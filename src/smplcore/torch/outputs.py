@@ -2,20 +2,21 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, fields
-from typing import Any, Iterator, Optional
+from typing import Any
 
 Tensor = Any
 
 
 @dataclass
 class ModelOutput:
-    vertices: Optional[Tensor] = None
-    joints: Optional[Tensor] = None
-    full_pose: Optional[Tensor] = None
-    global_orient: Optional[Tensor] = None
-    transl: Optional[Tensor] = None
-    v_shaped: Optional[Tensor] = None
+    vertices: Tensor | None = None
+    joints: Tensor | None = None
+    full_pose: Tensor | None = None
+    global_orient: Tensor | None = None
+    transl: Tensor | None = None
+    v_shaped: Tensor | None = None
 
     def __getitem__(self, key: str) -> Any:
         return getattr(self, key)
@@ -38,32 +39,32 @@ class ModelOutput:
 
 @dataclass
 class SMPLOutput(ModelOutput):
-    betas: Optional[Tensor] = None
-    body_pose: Optional[Tensor] = None
+    betas: Tensor | None = None
+    body_pose: Tensor | None = None
 
 
 @dataclass
 class SMPLHOutput(SMPLOutput):
-    left_hand_pose: Optional[Tensor] = None
-    right_hand_pose: Optional[Tensor] = None
-    transl: Optional[Tensor] = None
+    left_hand_pose: Tensor | None = None
+    right_hand_pose: Tensor | None = None
+    transl: Tensor | None = None
 
 
 @dataclass
 class SMPLXOutput(SMPLHOutput):
-    expression: Optional[Tensor] = None
-    jaw_pose: Optional[Tensor] = None
+    expression: Tensor | None = None
+    jaw_pose: Tensor | None = None
 
 
 @dataclass
 class MANOOutput(ModelOutput):
-    betas: Optional[Tensor] = None
-    hand_pose: Optional[Tensor] = None
+    betas: Tensor | None = None
+    hand_pose: Tensor | None = None
 
 
 @dataclass
 class FLAMEOutput(ModelOutput):
-    betas: Optional[Tensor] = None
-    expression: Optional[Tensor] = None
-    jaw_pose: Optional[Tensor] = None
-    neck_pose: Optional[Tensor] = None
+    betas: Tensor | None = None
+    expression: Tensor | None = None
+    jaw_pose: Tensor | None = None
+    neck_pose: Tensor | None = None
