@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from smplcore.engine.backend import index, namespace
+from smplcore.engine.backend import index, is_torch, namespace
 
 
 @dataclass(frozen=True, eq=False)
@@ -124,6 +124,15 @@ def skinning_transforms(world_rot: Any, world_pos: Any, rest_joints: Any) -> Any
 _CHUNK_VALUES = 1 << 22
 
 
+def _records_gradients(*arrays: Any) -> bool:
+    """Whether torch's autograd is recording operations on any of ``arrays``."""
+    if not is_torch(arrays[0]):
+        return False
+    import torch
+
+    return torch.is_grad_enabled() and any(a.requires_grad for a in arrays)
+
+
 def skin(vertices: Any, transforms: Any, weights_t: Any, translation: Any = None) -> Any:
     """Linear blend skinning.
 
@@ -143,6 +152,12 @@ def skin(vertices: Any, transforms: Any, weights_t: Any, translation: Any = None
     num_verts = weights_t.shape[1]
     if translation is not None:
         transforms = xp.concat([transforms[..., :9], transforms[..., 9:] + translation[:, None]], axis=-1)
+    if _records_gradients(vertices, transforms):
+        # Training: blended transforms, then one batched 3x3 product per vertex; its backward is two
+        # products, where the per-coordinate expressions below would record a dozen elementwise ops.
+        blended = weights_t.mT @ transforms  # (B, V, 12)
+        rot = blended[..., :9].reshape(batch, num_verts, 3, 3)
+        return (rot @ vertices.mT[..., None])[..., 0] + blended[..., 9:]
     per_vertex = transforms.mT.reshape(batch * 12, num_joints)  # rows: R00 R01 ... R22 tx ty tz per body
     chunk = max(1, _CHUNK_VALUES // (12 * max(num_verts, 1)))
     out = []
