@@ -257,3 +257,12 @@ def test_gradients_flow_to_parameters(fake_models):
     model(body_pose=torch.full((1, 69), 0.1)).joints.sum().backward()
     assert model.betas.grad is not None and torch.isfinite(model.betas.grad).all()
     assert model.global_orient.grad.abs().sum() > 0
+
+
+def test_v_shaped_is_the_shape_blend_only_and_absent_without_vertices(smplx_model):
+    betas, expression = torch.randn(2, 10), torch.randn(2, 10)
+    with torch.no_grad():
+        out = smplx_model(betas=betas, expression=expression)
+        expected = smplx_model.v_template + torch.einsum("bk,vdk->bvd", betas, smplx_model.shapedirs)
+        assert (out.v_shaped - expected).abs().max() < 1e-6
+        assert smplx_model(betas=betas, return_verts=False).v_shaped is None

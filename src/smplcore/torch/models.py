@@ -243,12 +243,15 @@ class BodyModule(nn.Module):
         return self.OUTPUT(vertices=v_shaped, betas=betas, v_shaped=v_shaped)
 
     def _v_shaped(self, betas: torch.Tensor) -> torch.Tensor:
+        """(B, V, 3) template + shape blend of ``betas`` (no expression, no pose), one GEMM."""
         if betas.ndim == 1:
             betas = betas[None]
         if betas.shape[-1] > self.num_betas:
             raise ShapeError(f"betas: expected shape (B, <={self.num_betas}), got {tuple(betas.shape)}")
-        basis = self.shapedirs[:, :, : betas.shape[-1]]
-        return self.v_template + torch.einsum("bk,vdk->bvd", betas, basis)
+        ones = torch.ones_like(betas[:, :1])
+        rows = self._engine_blend_basis[: 1 + betas.shape[-1]]
+        flat = torch.cat([ones, betas], dim=1) @ rows
+        return flat.reshape(betas.shape[0], 3, -1).transpose(1, 2).contiguous()
 
     # -- forward -----------------------------------------------------------------------------------
 
@@ -303,7 +306,7 @@ class BodyModule(nn.Module):
             fields[block.name] = out[block.name]
         if self.SPEC.has_expression:
             fields["expression"] = out["expression"]
-        if self.SPEC.model_type == "smplx" and return_shaped:
+        if self.SPEC.model_type == "smplx" and return_shaped and return_verts:
             fields["v_shaped"] = self._v_shaped(out["betas"][:, : self.num_betas])
         known = {f for f in self.OUTPUT.__dataclass_fields__}
         return self.OUTPUT(**{k: v for k, v in fields.items() if k in known})
