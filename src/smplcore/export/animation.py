@@ -113,19 +113,13 @@ class Animation:
 
     def world_transforms(self, frames: slice | np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """World rotations (T', J, 3, 3) and positions (T', J, 3) of the joints (translation included)."""
+        from smplcore.engine import KinematicTree, world_transforms
+
         rot = self.rotations if frames is None else self.rotations[frames]
         transl = self.transl if frames is None else self.transl[frames]
-        offsets = self.offsets
-        world_rot = np.empty_like(rot)
-        world_pos = np.empty(rot.shape[:2] + (3,))
-        for j, parent in enumerate(self.parents):  # parents come before their children
-            if parent < 0:
-                world_rot[:, j] = rot[:, j]
-                world_pos[:, j] = offsets[j] + transl
-            else:
-                world_rot[:, j] = world_rot[:, parent] @ rot[:, j]
-                world_pos[:, j] = world_pos[:, parent] + world_rot[:, parent] @ offsets[j]
-        return world_rot, world_pos
+        rest = np.broadcast_to(self.rest_joints, rot.shape[:2] + (3,))
+        world_rot, world_pos = world_transforms(rot, rest, KinematicTree.from_parents(self.parents))
+        return world_rot, world_pos + transl[:, None]
 
     def joints(self, frames: slice | np.ndarray | None = None) -> np.ndarray:
         """(T', J, 3) posed joint positions."""
