@@ -220,9 +220,7 @@ def run_group(group: Group, budget: Budget, estimates: dict[str, float], log: Ca
             log(f"    ! {e.shown}: {e.error}")
             continue
         e.n = max(1, min(2000, int(math.ceil(budget.sample_time / max(t, 1e-7)))))
-        e.max_samples = max(
-            budget.min_samples, min(budget.rounds, int(budget.entry_time / max(t * e.n, 1e-9)))
-        )
+        e.max_samples = max(budget.min_samples, min(budget.rounds, int(budget.entry_time / max(t * e.n, 1e-9))))
     live = [e for e in entries if e.error is None and e.skipped is None]
     for e in entries:
         if e.skipped and e.samples:  # timed once: keep the sample, run no more
@@ -252,9 +250,7 @@ def ratio_to(group: Group | None, name: str, ref: str = "smplx") -> float:
     b = next((e for e in group.entries if e.name == ref and e.samples), None)
     if a is None or b is None:
         return float("nan")
-    return statistics.median(
-        [(tb / b.batch) / (ta / a.batch) for ta, tb in zip(a.samples, b.samples, strict=False)]
-    )
+    return statistics.median([(tb / b.batch) / (ta / a.batch) for ta, tb in zip(a.samples, b.samples, strict=False)])
 
 
 def ceiling(group: Group) -> float:
@@ -410,9 +406,7 @@ def machine_info() -> dict[str, str]:
         m = re.search(r"model name\s*:\s*(.+)", txt)
         cpu = m.group(1).strip() if m else cpu
         flags = set(re.search(r"flags\s*:\s*(.+)", txt).group(1).split())
-        isa = ", ".join(
-            f for f in ("avx2", "fma", "avx512f", "avx512_vnni", "avx512_bf16", "amx_tile") if f in flags
-        )
+        isa = ", ".join(f for f in ("avx2", "fma", "avx512f", "avx512_vnni", "avx512_bf16", "amx_tile") if f in flags)
     except (OSError, AttributeError):
         isa = "?"
     try:
@@ -501,9 +495,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         help="3 rounds, B=1 and 512 forward, B=64 forward+backward, SMPL and SMPL-X, "
         "smplcore-torch / smplx / smplfitter-torch only (< 2 min)",
     )
-    ap.add_argument(
-        "--models", default=None, help=f"comma list of {ALL_MODELS} (default all; quick smpl,smplx)"
-    )
+    ap.add_argument("--models", default=None, help=f"comma list of {ALL_MODELS} (default all; quick smpl,smplx)")
     ap.add_argument(
         "--contenders",
         default=None,
@@ -526,18 +518,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         default=None,
         help="batch of smplx's full forward that joints-only is compared with (default 512; quick 64)",
     )
-    ap.add_argument(
-        "--rounds", type=int, default=None, help="interleaved rounds per group (default 4; quick 3)"
-    )
-    ap.add_argument(
-        "--sample-time", type=float, default=None, help="seconds per sample (default 0.15; quick 0.05)"
-    )
+    ap.add_argument("--rounds", type=int, default=None, help="interleaved rounds per group (default 4; quick 3)")
+    ap.add_argument("--sample-time", type=float, default=None, help="seconds per sample (default 0.15; quick 0.05)")
     ap.add_argument(
         "--entry-time",
         type=float,
         default=None,
-        help="seconds of samples per contender and group before slow ones get fewer rounds "
-        "(default 6; quick 2)",
+        help="seconds of samples per contender and group before slow ones get fewer rounds (default 6; quick 2)",
     )
     ap.add_argument(
         "--max-call",
@@ -545,9 +532,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         default=None,
         help="peers slower than this many seconds per call are timed once (default 6; quick 2)",
     )
-    ap.add_argument(
-        "--gap", type=float, default=0.3, help="idle seconds before a torch sample that follows NumPy code"
-    )
+    ap.add_argument("--gap", type=float, default=0.3, help="idle seconds before a torch sample that follows NumPy code")
     ap.add_argument(
         "--time-budget",
         type=float,
@@ -614,11 +599,7 @@ def main(argv: list[str] | None = None) -> int:
     grad_sizes = [int(b) for b in (args.grad_batch_sizes or ("64" if quick else "1,64,512")).split(",")]
     ref_batch = args.joints_ref_batch or (64 if quick else 512)
     modes = [m for m in args.modes.split(",") if m]
-    names = [
-        c
-        for c in (args.contenders or ",".join(QUICK_CONTENDERS if quick else peers.CONTENDERS)).split(",")
-        if c
-    ]
+    names = [c for c in (args.contenders or ",".join(QUICK_CONTENDERS if quick else peers.CONTENDERS)).split(",") if c]
     for c in names:
         if c not in peers.CONTENDERS:
             raise SystemExit(f"unknown contender {c!r}; known: {list(peers.CONTENDERS)}")
@@ -634,9 +615,7 @@ def main(argv: list[str] | None = None) -> int:
     notes: list[str] = []
     mach, vers = machine_info(), versions()
     digest = src_digest()
-    log(
-        f"smplcore forward benchmark — {'quick' if quick else 'full'} mode, {budget.rounds} rounds, float32, CPU"
-    )
+    log(f"smplcore forward benchmark — {'quick' if quick else 'full'} mode, {budget.rounds} rounds, float32, CPU")
     log(
         f"  {mach['cpu']} ({mach['isa']}), {mach['cores']} cores, {mach['memory']}, torch threads "
         f"{mach['torch_threads']}, NumPy BLAS {mach['numpy_blas']}, load {mach['load']}"
@@ -755,11 +734,7 @@ def main(argv: list[str] | None = None) -> int:
                         group.gemm[kind] = Entry(g.name, kind, g.run, batch, flops=g.flops)
             log(
                 f"\n[{info.label}] {MODE_LABEL[mode]}, B={batch}"
-                + (
-                    f"  (GEMM {shape[0]}×{shape[1]} @ {shape[1]}×{shape[2]} in the same rounds)"
-                    if group.gemm
-                    else ""
-                )
+                + (f"  (GEMM {shape[0]}×{shape[1]} @ {shape[1]}×{shape[2]} in the same rounds)" if group.gemm else "")
             )
             estimates = {e.name: _estimate(per_body, model, mode, e.name, e.batch) for e in entries}
             run_group(group, budget, {k: v for k, v in estimates.items() if v is not None}, log)
@@ -821,8 +796,10 @@ def main(argv: list[str] | None = None) -> int:
     log(f"\nTotal {elapsed:.0f} s")
 
     if src_digest() != digest:
-        msg = ("smplcore's source files changed during this run (someone edited src/), so its numbers may mix "
-               "two versions of the engine: rerun")
+        msg = (
+            "smplcore's source files changed during this run (someone edited src/), so its numbers may mix "
+            "two versions of the engine: rerun"
+        )
         log("  WARNING: " + msg)
         notes.append(msg)
     try:
@@ -903,7 +880,7 @@ def evaluate_targets(groups: list[Group], infos: dict, memory: dict, args) -> li
             model,
             ratio_to(g, core) if g else None,
             lambda v: v >= 5,
-            lambda v: f"{v:.2f}×" + (f" (GEMM-bound limit {limit:.1f}×)" if math.isfinite(limit) else ""),
+            lambda v, limit=limit: f"{v:.2f}×" + (f" (GEMM-bound limit {limit:.1f}×)" if math.isfinite(limit) else ""),
         )
         if g is not None:
             peer_entries = [e for e in g.entries if e.name in PEERS and e.samples]
@@ -932,13 +909,12 @@ def evaluate_targets(groups: list[Group], infos: dict, memory: dict, args) -> li
             model,
             None if r1 is None else 1 / r1,
             lambda v: v <= 0.5,
-            lambda v: f"{v:.2f}× ({r1:.1f}× faster)",
+            lambda v, r1=r1: f"{v:.2f}× ({r1:.1f}× faster)",
         )
         gj = _group(groups, model, "joints", args.joints_batch)
         ref = next((e.batch for e in gj.entries if e.name == "smplx"), None) if gj else None
         add(
-            f"joints only B={args.joints_batch} ≥ 50× smplx full forward"
-            + (f" (bodies/s, B={ref})" if ref else ""),
+            f"joints only B={args.joints_batch} ≥ 50× smplx full forward" + (f" (bodies/s, B={ref})" if ref else ""),
             model,
             ratio_to(gj, core) if gj else None,
             lambda v: v >= 50,
@@ -960,7 +936,7 @@ def evaluate_targets(groups: list[Group], infos: dict, memory: dict, args) -> li
             model,
             mval,
             lambda v: v <= 0.5,
-            lambda v: f"{v:.2f}× ({mc:.0f}/{ms:.0f} MiB)",
+            lambda v, mc=mc, ms=ms: f"{v:.2f}× ({mc:.0f}/{ms:.0f} MiB)",
         )
     return out
 
@@ -1081,9 +1057,7 @@ def render_markdown(
         "axis-angle poses, full (non-PCA) hand poses with a flat hand mean. Contenders:"
     )
     w("")
-    w(
-        "* **smplcore-torch** `smplcore.create(...)(**params)`, **smplcore-numpy** `smplcore.BodyModel(...)(**params)`;"
-    )
+    w("* **smplcore-torch** `smplcore.create(...)(**params)`, **smplcore-numpy** `smplcore.BodyModel(...)(**params)`;")
     w("* **smplx** 0.1.28 `smplx.create(root, model_type=..., use_pca=False, flat_hand_mean=True)`;")
     w(
         "* **body-models** `body_models.<model>.{numpy,torch}.<MODEL>(model_path=file)`: `prepare_identity` + "
@@ -1162,11 +1136,7 @@ def render_markdown(
             if g.mode == "joints":
                 cols += ["what is computed"]
             w("| " + " | ".join(cols) + " |")
-            w(
-                "| --- |"
-                + " ---: |" * (len(cols) - 1 - (g.mode == "joints"))
-                + (" --- |" if g.mode == "joints" else "")
-            )
+            w("| --- |" + " ---: |" * (len(cols) - 1 - (g.mode == "joints")) + (" --- |" if g.mode == "joints" else ""))
             for e in g.entries:
                 if not e.samples:
                     why = f"error: {e.error}" if e.error else e.skipped

@@ -291,13 +291,11 @@ class BodyModels(Contender):
             "shape": params["betas"],
         }
         if self.info.hands:
-            x["hand_pose"] = np.concatenate([params["left_hand_pose"], params["right_hand_pose"]], 1).reshape(
-                b, 30, 3
-            )
+            x["hand_pose"] = np.concatenate([params["left_hand_pose"], params["right_hand_pose"]], 1).reshape(b, 30, 3)
         if self.info.face:
-            x["head_pose"] = np.concatenate(
-                [params["jaw_pose"], params["leye_pose"], params["reye_pose"]], 1
-            ).reshape(b, 3, 3)
+            x["head_pose"] = np.concatenate([params["jaw_pose"], params["leye_pose"], params["reye_pose"]], 1).reshape(
+                b, 3, 3
+            )
             x["expression"] = params["expression"]
         return x
 
@@ -357,9 +355,7 @@ class Smplfitter(Contender):
         else:
             from smplfitter.np import BodyModel
         name = {"smpl": "smpl", "open": "smpl", "smplh": "smplh", "smplx": "smplx"}[info.key]
-        self.model = BodyModel(
-            name, files.smplfitter_gender, model_root=str(files.smplfitter_root), num_betas=10
-        )
+        self.model = BodyModel(name, files.smplfitter_gender, model_root=str(files.smplfitter_root), num_betas=10)
         if self.kind == "torch":
             self.model.requires_grad_(False)
 

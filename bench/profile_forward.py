@@ -172,7 +172,7 @@ def main() -> int:
         files = fixtures.prepare(key)
         c = peers.SmplcoreTorch(info, files)
         x = c.prepare(peers.canonical_params(info, args.batch))
-        total = timeit(lambda: c.forward(x), args.repeats)
+        total = timeit(lambda c=c, x=x: c.forward(x), args.repeats)
         print(
             f"\n[{info.label}] B={args.batch}: whole call {total * 1e3:.1f} ms "
             f"({peers.model_info(key).num_verts} vertices, {info.num_joints} joints)"
@@ -194,17 +194,13 @@ def main() -> int:
         with torch.no_grad(), profile(activities=[ProfilerActivity.CPU]) as prof:
             for _ in range(3):
                 c.model(**x)
-        print(
-            prof.key_averages().table(
-                sort_by="self_cpu_time_total", row_limit=args.ops, max_name_column_width=28
-            )
-        )
+        print(prof.key_averages().table(sort_by="self_cpu_time_total", row_limit=args.ops, max_name_column_width=28))
 
         with torch.no_grad():
             v_ref, j_ref = c.forward(x)
             v_new, j_new = planar_chunked_forward(c.model, x, args.chunk)
             diff = float((v_new - v_ref).abs().max())
-            t_new = timeit(lambda: planar_chunked_forward(c.model, x, args.chunk), args.repeats)
+            t_new = timeit(lambda c=c, x=x: planar_chunked_forward(c.model, x, args.chunk), args.repeats)
         print(
             f"  prototype: vertex blocks of {args.chunk}, planar layout: {t_new * 1e3:.1f} ms for the vertices and "
             f"skeleton joints vs {total * 1e3:.1f} ms ({total / t_new:.1f}x); max |Δ| vertices "
