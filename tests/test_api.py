@@ -266,3 +266,18 @@ def test_v_shaped_is_the_shape_blend_only_and_absent_without_vertices(smplx_mode
         expected = smplx_model.v_template + torch.einsum("bk,vdk->bvd", betas, smplx_model.shapedirs)
         assert (out.v_shaped - expected).abs().max() < 1e-6
         assert smplx_model(betas=betas, return_verts=False).v_shaped is None
+
+
+def test_v_shaped_is_built_on_first_read_from_the_betas_of_the_call(smplx_model):
+    betas = torch.randn(2, 10)
+    expected = smplx_model.v_template + torch.einsum("bk,vdk->bvd", betas, smplx_model.shapedirs)
+    with torch.no_grad():
+        out = smplx_model(betas=betas)
+    betas.zero_()  # an in-place edit after the call does not leak into the deferred field
+    assert (out.v_shaped - expected).abs().max() < 1e-6
+    assert out.v_shaped is out["v_shaped"]  # computed once, then stored
+    assert (dict(out.items())["v_shaped"] - expected).abs().max() < 1e-6
+
+    trainable = torch.randn(1, 10, requires_grad=True)
+    smplx_model(betas=trainable).v_shaped.sum().backward()
+    assert trainable.grad is not None and trainable.grad.abs().sum() > 0

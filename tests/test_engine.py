@@ -125,3 +125,55 @@ def test_gradcheck_through_the_whole_model_in_float64(fake_models):
     for pose in (torch.zeros(1, 48, dtype=torch.float64), half_turns):
         pose = pose.clone().requires_grad_(True)
         assert torch.autograd.gradcheck(f, (betas, pose), eps=1e-6, atol=1e-6)
+
+
+@pytest.mark.parametrize("key,model_type,options", [
+    ("smpl_neutral_pkl", "smpl", {}),
+    ("smplh_neutral_pkl", "smplh", {"use_pca": False}),
+    ("smplx_neutral_npz", "smplx", {"use_face_contour": True}),
+    ("mano_right_pkl", "mano", {"use_pca": False}),
+    ("flame_neutral_pkl", "flame", {}),
+])
+def test_vertex_blocked_inference_equals_the_plain_pass(fake_models, monkeypatch, key, model_type, options):
+    """The no-grad path (mesh cut into vertex blocks, joints per block) equals the autograd path."""
+    import smplcore
+    from smplcore.engine import blocked
+
+    monkeypatch.setattr(blocked, "_PLANE_VALUES", 8 * 100)  # blocks of 100 vertices at B = 8
+    monkeypatch.setattr(blocked, "_MIN_BLOCK", 1)
+    model = smplcore.create(fake_models[key], **options)
+    num_verts = model.v_template.shape[0]
+    sizes = [b.stop - b.start for b in model._engine_arrays().vertex_blocks(blocked.block_size(8, num_verts))]
+    assert len(sizes) > 5 and sum(sizes) == num_verts
+    gen = torch.Generator().manual_seed(3)
+    params = {"betas": torch.randn(8, model.num_betas, generator=gen), "transl": torch.randn(8, 3, generator=gen)}
+    if model.SPEC.has_expression:
+        params["expression"] = torch.randn(8, model.num_expression_coeffs, generator=gen)
+    for block in model.SPEC.pose_blocks:
+        params[block.name] = 0.4 * torch.randn(8, model.setup.pose_width(block.name), generator=gen)
+    with torch.no_grad():
+        fast = model(**params)
+    params["betas"].requires_grad_(True)  # autograd records: the plain pass
+    plain = model(**params)
+    assert (fast.vertices - plain.vertices).abs().max() < 1e-5
+    assert (fast.joints - plain.joints).abs().max() < 1e-5
+
+    np_model = smplcore.BodyModel(fake_models[key], **options)
+    out = np_model(**{k: v.detach().numpy() for k, v in params.items()})
+    np.testing.assert_allclose(out.vertices, plain.vertices.detach().numpy(), atol=1e-5)
+
+
+def test_vertex_blocks_hold_exactly_the_nonzero_weights():
+    from smplcore.engine.blocked import vertex_blocks
+
+    rng = np.random.default_rng(0)
+    weights_t = np.where(rng.random((7, 50)) < 0.2, rng.random((7, 50)), 0.0)
+    weights_t[:, 40:] = rng.random((7, 10))  # the last block uses every joint
+    blocks = vertex_blocks(weights_t, 10)
+    assert [(b.start, b.stop) for b in blocks] == [(s, s + 10) for s in range(0, 50, 10)]
+    for b in blocks:
+        dense = np.zeros((7, b.stop - b.start))
+        joints = np.arange(7) if b.joints is None else b.joints
+        dense[joints] = b.weights_t
+        np.testing.assert_array_equal(dense, weights_t[:, b.start:b.stop])
+    assert blocks[-1].joints is None and all(len(b.joints) < 7 for b in blocks[:-1] if b.joints is not None)

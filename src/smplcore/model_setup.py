@@ -284,10 +284,10 @@ def evaluate(setup: ModelSetup, arrays: engine.BodyArrays, params: dict[str, Any
     """
     spec = setup.spec
     given = {k: v for k, v in params.items() if v is not None}
-    ref = next(iter(given.values()), like if like is not None else arrays.joint_template)
+    ref = next(iter(given.values()), like if like is not None else arrays.joint_basis)
     xp = namespace(ref)
     batch = batch_of({k: (v if v.ndim > 1 else v[None]) for k, v in given.items()})
-    zeros = xp.zeros_like(arrays.joint_template[:1, :1])  # (1, 1) in the model's dtype/device
+    zeros = xp.zeros_like(arrays.joint_basis[:1, :1])  # (1, 1) in the model's dtype/device
 
     def coefficients(name: str, width: int) -> Any:
         if width == 0:
@@ -415,10 +415,4 @@ def _keypoints(setup: ModelSetup, arrays: engine.BodyArrays, coeffs: Any, rotmat
 def _pose_vertex_subset(setup: ModelSetup, coeffs: Any, rotmats: Any, transforms: Any,
                         arrays: engine.BodyArrays) -> Any:
     """(B, n, 3) posed keypoint vertices only (``setup.keypoints.ids``)."""
-    from smplcore.engine.skeleton import skin
-
-    ids = setup.keypoints.ids
-    rows = setup.const("kp_rows", ids, arrays.weights_t)
-    cols = setup.const("kp_cols", engine.vertex_columns(ids, arrays.weights_t.shape[1]), arrays.weights_t)
-    v = engine.rest_vertices(coeffs, rotmats, arrays, columns=cols)
-    return skin(v, transforms, arrays.weights_t[:, rows])
+    return engine.posed_vertex_subset(coeffs, rotmats, transforms, arrays, setup.keypoints.ids)

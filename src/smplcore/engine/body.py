@@ -10,14 +10,15 @@ posed vertices and joints:
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from smplcore.engine.backend import namespace
+from smplcore.engine import blocked
+from smplcore.engine.backend import index, namespace
 from smplcore.engine.rotations import pose_features
-from smplcore.engine.skeleton import KinematicTree, skin, skinning_transforms, world_transforms
+from smplcore.engine.skeleton import KinematicTree, chain, records_gradients, skin, skinning_transforms
 
 
 @dataclass
@@ -31,18 +32,20 @@ class BodyArrays:
         (all x, then all y, then all z). Rest-pose vertices are ``[1, coeffs, pose_features] @
         blend_basis``: template, shape and pose blend in one product, laid out as (B, 3, V).
     num_coeffs : K.
-    joint_template : (J, 3) rest joints of the template, ``J_regressor @ v_template``.
-    joint_shape_basis : (K, J * 3) how each coefficient moves the rest joints.
-    weights_t : (J, V) skinning weights, transposed.
+    joint_basis : (1 + K, 6 J) rows: the template, then the K coefficients; columns: the rest joints,
+        then each joint's offset from its parent (the root's: its position), both in depth order
+        (``tree.order``) so that the kinematic chain reads each level as a contiguous run.
+        ``[1, coeffs] @ joint_basis`` is exact for rest joints: the regressor is linear.
+    weights_t : (J, V) skinning weights, transposed, rows in depth order (like the transforms).
     tree : the kinematic tree.
     """
 
     blend_basis: Any
     num_coeffs: int
-    joint_template: Any
-    joint_shape_basis: Any
+    joint_basis: Any
     weights_t: Any
     tree: KinematicTree
+    _derived: dict = field(default_factory=dict, repr=False)
 
     @classmethod
     def build(cls, v_template: np.ndarray, shapedirs: np.ndarray, J_regressor: np.ndarray,
@@ -56,33 +59,69 @@ class BodyArrays:
         v_template = np.asarray(v_template, dtype=np.float64)
         shapedirs = np.asarray(shapedirs, dtype=np.float64)
         J_regressor = np.asarray(J_regressor, dtype=np.float64)
+        tree = KinematicTree.from_parents(parents)
         num_verts, num_coeffs = v_template.shape[0], shapedirs.shape[-1]
         rows = [v_template.T.reshape(1, -1), shapedirs.transpose(2, 1, 0).reshape(num_coeffs, 3 * num_verts)]
         if posedirs is not None and np.any(posedirs):
             rows.append(np.asarray(posedirs).transpose(2, 1, 0).reshape(-1, 3 * num_verts))
-        joint_shape = np.einsum("jv,vdk->kjd", J_regressor, shapedirs).reshape(num_coeffs, -1)
+        # rest joints of the template and per coefficient: (1 + K, J, 3)
+        joints = np.concatenate([(J_regressor @ v_template)[None], np.einsum("jv,vdk->kjd", J_regressor, shapedirs)])
+        parent = np.maximum(np.asarray(tree.parents), 0)
+        offsets = joints - joints[:, parent] * (np.asarray(tree.parents) >= 0)[None, :, None]
+        order = list(tree.order)
+        joint_basis = np.concatenate([joints[:, order], offsets[:, order]], axis=1).reshape(1 + num_coeffs, -1)
         return cls(
             blend_basis=convert(np.concatenate(rows, axis=0)),
             num_coeffs=num_coeffs,
-            joint_template=convert(J_regressor @ v_template),
-            joint_shape_basis=convert(joint_shape),
-            weights_t=convert(np.ascontiguousarray(np.asarray(weights).T)),
-            tree=KinematicTree.from_parents(parents),
+            joint_basis=convert(joint_basis),
+            weights_t=convert(np.ascontiguousarray(np.asarray(weights).T[order])),
+            tree=tree,
         )
 
     @property
     def has_pose_correctives(self) -> bool:
         return self.blend_basis.shape[0] > 1 + self.num_coeffs
 
+    def derived(self, key: Any, make: Callable[[], Any]) -> Any:
+        """``make()``, cached under ``key`` until the basis or the weights move (device, dtype, edit)."""
+        owner = (blocked.array_identity(self.blend_basis), blocked.array_identity(self.weights_t))
+        if self._derived.get("owner") != owner:
+            self._derived.clear()
+            self._derived["owner"] = owner
+        if key not in self._derived:
+            self._derived[key] = make()
+        return self._derived[key]
+
+    def vertex_blocks(self, size: int) -> tuple[blocked.VertexBlock, ...]:
+        """The mesh cut into blocks of ``size`` vertices for :func:`blocked.posed_vertices` (cached)."""
+        return self.derived(("blocks", size), lambda: blocked.vertex_blocks(self.weights_t, size))
+
+    def vertex_subset(self, ids: np.ndarray) -> tuple[Any, Any, tuple[blocked.VertexBlock, ...]]:
+        """Basis columns, weights and one vertex block for the vertices ``ids`` only (cached)."""
+        def make():
+            cols = index(vertex_columns(ids, self.weights_t.shape[1]), self.weights_t)
+            rows = index(ids, self.weights_t)
+            basis, weights_t = self.blend_basis[:, cols], self.weights_t[:, rows]
+            return basis, weights_t, blocked.vertex_blocks(weights_t, max(len(ids), 1))
+        return self.derived(("subset", np.asarray(ids).tobytes()), make)
+
     def map(self, fn: Callable[[Any], Any]) -> BodyArrays:
         """The same arrays with ``fn`` applied to each (e.g. a dtype or device change)."""
-        return BodyArrays(fn(self.blend_basis), self.num_coeffs, fn(self.joint_template),
-                          fn(self.joint_shape_basis), fn(self.weights_t), self.tree)
+        return BodyArrays(fn(self.blend_basis), self.num_coeffs, fn(self.joint_basis), fn(self.weights_t), self.tree)
 
 
 def _with_one(coeffs: Any) -> Any:
     xp = namespace(coeffs)
     return xp.concat([xp.ones_like(coeffs[:, :1]), coeffs], axis=1)
+
+
+def blend_features(coeffs: Any, rotmats: Any | None, arrays: BodyArrays) -> Any:
+    """(B, R) ``[1, coeffs, pose features]``: the rows of ``blend_basis`` a body uses (no pose
+    features when ``rotmats`` is None or the model has no pose correctives)."""
+    feats = _with_one(coeffs)
+    if rotmats is not None and arrays.has_pose_correctives:
+        feats = namespace(coeffs).concat([feats, pose_features(rotmats)], axis=1)
+    return feats
 
 
 def rest_vertices(coeffs: Any, rotmats: Any | None, arrays: BodyArrays, columns: Any = None) -> Any:
@@ -91,12 +130,10 @@ def rest_vertices(coeffs: Any, rotmats: Any | None, arrays: BodyArrays, columns:
 
     ``columns`` (from :func:`vertex_columns`) selects a subset of the mesh's vertices.
     """
-    basis = arrays.blend_basis if columns is None else arrays.blend_basis[:, columns]
-    feats = _with_one(coeffs)
-    if rotmats is not None and arrays.has_pose_correctives:
-        feats = namespace(coeffs).concat([feats, pose_features(rotmats)], axis=1)
-    else:
-        basis = basis[: 1 + arrays.num_coeffs]
+    feats = blend_features(coeffs, rotmats, arrays)
+    basis = arrays.blend_basis[: feats.shape[1]]
+    if columns is not None:
+        basis = basis[:, columns]
     return (feats @ basis).reshape(coeffs.shape[0], 3, -1)
 
 
@@ -110,10 +147,18 @@ def shaped_vertices(coeffs: Any, arrays: BodyArrays) -> Any:
     return rest_vertices(coeffs, None, arrays).mT
 
 
+def _depth_ordered_joints(coeffs: Any, arrays: BodyArrays) -> tuple[Any, Any]:
+    """(B, J, 3) rest joints and (B, J, 3) offsets from their parents, in depth order."""
+    batch, num_joints = coeffs.shape[0], len(arrays.tree.parents)
+    both = (_with_one(coeffs) @ arrays.joint_basis).reshape(batch, 2, num_joints, 3)
+    return both[:, 0], both[:, 1]
+
+
 def rest_joints(coeffs: Any, arrays: BodyArrays) -> Any:
     """(B, J, 3) rest-pose joints for (B, K) shape coefficients (no mesh is built)."""
-    batch = coeffs.shape[0]
-    return arrays.joint_template + (coeffs @ arrays.joint_shape_basis).reshape(batch, -1, 3)
+    joints = _depth_ordered_joints(coeffs, arrays)[0]
+    inverse = arrays.tree.indices(coeffs)["inverse"]
+    return joints if inverse is None else joints[:, inverse]
 
 
 def forward(coeffs: Any, rotmats: Any, arrays: BodyArrays, *, vertices: bool = True, translation: Any = None
@@ -132,12 +177,38 @@ def forward(coeffs: Any, rotmats: Any, arrays: BodyArrays, *, vertices: bool = T
     -------
     posed_vertices : (B, V, 3), or None when ``vertices`` is False.
     posed_joints : (B, J, 3).
-    transforms : (B, J, 12) skinning transforms, for posing any further rest-pose points.
+    transforms : (B, J, 12) skinning transforms in depth order (the rows of ``arrays.weights_t``),
+        for posing any further rest-pose points.
     """
-    joints = rest_joints(coeffs, arrays)
-    world_rot, world_pos = world_transforms(rotmats, joints, arrays.tree)
+    idx = arrays.tree.indices(rotmats)
+    joints, offsets = _depth_ordered_joints(coeffs, arrays)
+    local = rotmats if idx["order"] is None else rotmats[:, idx["order"]]
+    world_rot, world_pos = chain(local, offsets, arrays.tree)
     transforms = skinning_transforms(world_rot, world_pos, joints)
+    posed_joints = world_pos if idx["inverse"] is None else world_pos[:, idx["inverse"]]
     if not vertices:
-        return None, world_pos, transforms
-    v = rest_vertices(coeffs, rotmats, arrays)
-    return skin(v, transforms, arrays.weights_t, translation), world_pos, transforms
+        return None, posed_joints, transforms
+    feats = blend_features(coeffs, rotmats, arrays)
+    size = blocked.block_size(feats.shape[0], arrays.weights_t.shape[1])
+    verts = _skin_from_basis(feats, transforms, arrays.blend_basis, arrays.weights_t,
+                             lambda: arrays.vertex_blocks(size), translation)
+    return verts, posed_joints, transforms
+
+
+def posed_vertex_subset(coeffs: Any, rotmats: Any, transforms: Any, arrays: BodyArrays, ids: np.ndarray) -> Any:
+    """(B, n, 3) posed vertices ``ids`` only (untranslated), from :func:`forward`'s ``transforms``."""
+    basis, weights_t, blocks = arrays.vertex_subset(ids)
+    feats = blend_features(coeffs, rotmats, arrays)
+    return _skin_from_basis(feats, transforms, basis, weights_t, lambda: blocks, None)
+
+
+def _skin_from_basis(feats: Any, transforms: Any, basis: Any, weights_t: Any, blocks: Callable[[], Any],
+                     translation: Any) -> Any:
+    """Blend ``feats @ basis`` and skin it: vertex-blocked without autograd, else the plain pass."""
+    if not records_gradients(feats, transforms, basis, weights_t):
+        if translation is not None:
+            transforms = namespace(transforms).concat(
+                [transforms[..., :9], transforms[..., 9:] + translation[:, None]], axis=-1)
+        return blocked.posed_vertices(feats, transforms, basis, blocks())
+    v = (feats @ basis[: feats.shape[1]]).reshape(feats.shape[0], 3, -1)
+    return skin(v, transforms, weights_t, translation)

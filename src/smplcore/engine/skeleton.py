@@ -90,22 +90,32 @@ def world_transforms(rotmats: Any, joints: Any, tree: KinematicTree) -> tuple[An
     world_rot : (B, J, 3, 3) rotation of each joint in the world.
     world_pos : (B, J, 3) posed joint positions.
     """
-    xp = namespace(rotmats)
     idx = tree.indices(rotmats)
     offsets = joints - joints[:, idx["parents"]]  # the root's own "offset" is zero; replaced below
-    offsets = xp.concat([joints[:, :1], offsets[:, 1:]], axis=1)
+    offsets = namespace(rotmats).concat([joints[:, :1], offsets[:, 1:]], axis=1)
     if idx["order"] is not None:
         rotmats, offsets = rotmats[:, idx["order"]], offsets[:, idx["order"]]
+    world_rot, world_pos = chain(rotmats, offsets, tree)
+    if idx["inverse"] is not None:
+        world_rot, world_pos = world_rot[:, idx["inverse"]], world_pos[:, idx["inverse"]]
+    return world_rot, world_pos
+
+
+def chain(rotmats: Any, offsets: Any, tree: KinematicTree) -> tuple[Any, Any]:
+    """:func:`world_transforms` on joints already in depth order (``tree.order``).
+
+    ``rotmats`` (B, J, 3, 3) local rotations and ``offsets`` (B, J, 3) rest offsets from the parent
+    (the root's: its position); returns world rotations and positions in the same order.
+    """
+    xp = namespace(rotmats)
+    idx = tree.indices(rotmats)
     start, stop = tree.level_bounds[0]
     level_rot, level_pos = [rotmats[:, start:stop]], [offsets[:, start:stop]]
     for (start, stop), slots in zip(tree.level_bounds[1:], idx["slots"]):
         parent_rot = level_rot[-1][:, slots]
         level_rot.append(parent_rot @ rotmats[:, start:stop])
         level_pos.append((parent_rot @ offsets[:, start:stop, :, None])[..., 0] + level_pos[-1][:, slots])
-    world_rot, world_pos = xp.concat(level_rot, axis=1), xp.concat(level_pos, axis=1)
-    if idx["inverse"] is not None:
-        world_rot, world_pos = world_rot[:, idx["inverse"]], world_pos[:, idx["inverse"]]
-    return world_rot, world_pos
+    return xp.concat(level_rot, axis=1), xp.concat(level_pos, axis=1)
 
 
 def skinning_transforms(world_rot: Any, world_pos: Any, rest_joints: Any) -> Any:
@@ -124,7 +134,7 @@ def skinning_transforms(world_rot: Any, world_pos: Any, rest_joints: Any) -> Any
 _CHUNK_VALUES = 1 << 22
 
 
-def _records_gradients(*arrays: Any) -> bool:
+def records_gradients(*arrays: Any) -> bool:
     """Whether torch's autograd is recording operations on any of ``arrays``."""
     if not is_torch(arrays[0]):
         return False
@@ -152,7 +162,7 @@ def skin(vertices: Any, transforms: Any, weights_t: Any, translation: Any = None
     num_verts = weights_t.shape[1]
     if translation is not None:
         transforms = xp.concat([transforms[..., :9], transforms[..., 9:] + translation[:, None]], axis=-1)
-    if _records_gradients(vertices, transforms):
+    if records_gradients(vertices, transforms):
         # Training: blended transforms, then one batched 3x3 product per vertex; its backward is two
         # products, where the per-coordinate expressions below would record a dozen elementwise ops.
         blended = weights_t.mT @ transforms  # (B, V, 12)

@@ -29,7 +29,7 @@ from smplcore.io.locate import read_model
 from smplcore.io.model_data import ModelData
 from smplcore.io.model_files import _from_official
 from smplcore.model_setup import ModelSetup, batch_of, evaluate, warn_once
-from smplcore.torch.outputs import FLAMEOutput, MANOOutput, ModelOutput, SMPLHOutput, SMPLOutput, SMPLXOutput
+from smplcore.torch.outputs import Deferred, FLAMEOutput, MANOOutput, ModelOutput, SMPLHOutput, SMPLOutput, SMPLXOutput
 
 __all__ = ["create", "build_layer", "BodyModule", "SMPL", "SMPLH", "SMPLX", "MANO", "FLAME", "OpenModel",
            "SMPLLayer", "SMPLHLayer", "SMPLXLayer", "MANOLayer", "FLAMELayer", "ModelOutput", "SMPLOutput",
@@ -44,7 +44,7 @@ _SETUP_OPTIONS = {
 # Accepted for compatibility and without effect here.
 _INERT_OPTIONS = {"use_compressed", "create_vertex_joint_selector"}
 
-_ENGINE_FIELDS = ("blend_basis", "joint_template", "joint_shape_basis", "weights_t")
+_ENGINE_FIELDS = ("blend_basis", "joint_basis", "weights_t")
 
 
 def _block_flag(block_name: str) -> str:
@@ -136,6 +136,7 @@ class BodyModule(nn.Module):
                 self.register_buffer("neck_kin_chain", torch.as_tensor(setup.neck_chain, dtype=torch.long))
         arrays = setup.body_arrays(as_float)
         self._tree, self._num_coeffs = arrays.tree, arrays.num_coeffs
+        self._vertex_block_cache: dict = {}  # the weights cut into vertex blocks, per block size
         for field in _ENGINE_FIELDS:
             value = getattr(arrays, field)
             self.register_buffer(f"_engine_{field}", value, persistent=False)
@@ -207,8 +208,9 @@ class BodyModule(nn.Module):
                 param.fill_(0)
 
     def _engine_arrays(self) -> engine.BodyArrays:
-        return engine.BodyArrays(self._engine_blend_basis, self._num_coeffs, self._engine_joint_template,
-                                 self._engine_joint_shape_basis, self._engine_weights_t, self._tree)
+        return engine.BodyArrays(self._engine_blend_basis, self._num_coeffs, self._engine_joint_basis,
+                                 self._engine_weights_t, self._tree,
+                                 self._vertex_block_cache)
 
     # smplx's blend-shape buffers, as views of the engine's single basis (no second copy in memory)
     def _basis_rows(self, start: int, stop: int) -> torch.Tensor:
@@ -307,7 +309,8 @@ class BodyModule(nn.Module):
         if self.SPEC.has_expression:
             fields["expression"] = out["expression"]
         if self.SPEC.model_type == "smplx" and return_shaped and return_verts:
-            fields["v_shaped"] = self._v_shaped(out["betas"][:, : self.num_betas])
+            betas = out["betas"][:, : self.num_betas].clone()  # a later in-place edit must not change it
+            fields["v_shaped"] = Deferred(lambda: self._v_shaped(betas))  # built when first read
         known = {f for f in self.OUTPUT.__dataclass_fields__}
         return self.OUTPUT(**{k: v for k, v in fields.items() if k in known})
 

@@ -2,11 +2,21 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, fields
 from typing import Any
 
 Tensor = Any
+
+
+class Deferred:
+    """A field value computed on first access (e.g. ``v_shaped``, which few callers read but
+    costs a whole mesh to build)."""
+
+    __slots__ = ("compute",)
+
+    def __init__(self, compute: Callable[[], Any]) -> None:
+        self.compute = compute
 
 
 @dataclass
@@ -17,6 +27,13 @@ class ModelOutput:
     global_orient: Tensor | None = None
     transl: Tensor | None = None
     v_shaped: Tensor | None = None
+
+    def __getattribute__(self, name: str) -> Any:
+        value = object.__getattribute__(self, name)
+        if type(value) is Deferred:
+            value = value.compute()
+            object.__setattr__(self, name, value)
+        return value
 
     def __getitem__(self, key: str) -> Any:
         return getattr(self, key)
