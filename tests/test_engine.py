@@ -134,23 +134,27 @@ def test_gradcheck_through_the_whole_model_in_float64(fake_models):
     ("mano_right_pkl", "mano", {"use_pca": False}),
     ("flame_neutral_pkl", "flame", {}),
 ])
-def test_vertex_blocked_inference_equals_the_plain_pass(fake_models, monkeypatch, key, model_type, options):
+@pytest.mark.parametrize("batch", [8, 70])  # the skeleton in NumPy (small batch) and in torch
+def test_vertex_blocked_inference_equals_the_plain_pass(fake_models, monkeypatch, key, model_type, options, batch):
     """The no-grad path (mesh cut into vertex blocks, joints per block) equals the autograd path."""
     import smplcore
-    from smplcore.engine import blocked
+    from smplcore.engine import backend, blocked
 
-    monkeypatch.setattr(blocked, "_PLANE_VALUES", 8 * 100)  # blocks of 100 vertices at B = 8
+    assert (batch <= backend.SMALL_BATCH) == (batch == 8)
+    monkeypatch.setattr(blocked, "_PLANE_VALUES", batch * 100)  # blocks of 100 vertices
     monkeypatch.setattr(blocked, "_MIN_BLOCK", 1)
+    monkeypatch.setattr(blocked, "_APPLY_VALUES", 3 * 100)  # skinned 3 bodies at a time
     model = smplcore.create(fake_models[key], **options)
     num_verts = model.v_template.shape[0]
-    sizes = [b.stop - b.start for b in model._engine_arrays().vertex_blocks(blocked.block_size(8, num_verts))]
+    sizes = [b.stop - b.start for b in model._engine_arrays().vertex_blocks(blocked.block_size(batch, num_verts))]
     assert len(sizes) > 5 and sum(sizes) == num_verts
     gen = torch.Generator().manual_seed(3)
-    params = {"betas": torch.randn(8, model.num_betas, generator=gen), "transl": torch.randn(8, 3, generator=gen)}
+    params = {"betas": torch.randn(batch, model.num_betas, generator=gen),
+              "transl": torch.randn(batch, 3, generator=gen)}
     if model.SPEC.has_expression:
-        params["expression"] = torch.randn(8, model.num_expression_coeffs, generator=gen)
+        params["expression"] = torch.randn(batch, model.num_expression_coeffs, generator=gen)
     for block in model.SPEC.pose_blocks:
-        params[block.name] = 0.4 * torch.randn(8, model.setup.pose_width(block.name), generator=gen)
+        params[block.name] = 0.4 * torch.randn(batch, model.setup.pose_width(block.name), generator=gen)
     with torch.no_grad():
         fast = model(**params)
     params["betas"].requires_grad_(True)  # autograd records: the plain pass

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from smplcore.engine import body as engine
-from smplcore.engine.backend import eye, index, namespace
+from smplcore.engine.backend import eye, from_numpy, host_numpy, index, is_torch, namespace
 from smplcore.engine.landmarks import barycentric_points, contour_rows
 from smplcore.engine.rotations import rodrigues
 from smplcore.errors import ModelFileError, ShapeError
@@ -331,7 +331,7 @@ def evaluate(setup: ModelSetup, arrays: engine.BodyArrays, params: dict[str, Any
         if np.any(setup.pose_mean):
             full_pose = full_pose + setup.const("pose_mean", setup.pose_mean, zeros)
         out["full_pose"] = full_pose
-        rotmats = rodrigues(full_pose.reshape(batch, -1, 3))
+        rotmats = _rodrigues(full_pose.reshape(batch, -1, 3))
     out["rotmats"] = rotmats
 
     transl = given.get("transl")
@@ -344,6 +344,13 @@ def evaluate(setup: ModelSetup, arrays: engine.BodyArrays, params: dict[str, Any
     out["vertices"] = verts
     out["transl"] = transl
     return out
+
+
+def _rodrigues(rotvec: Any) -> Any:
+    """Rotation matrices; for a small torch batch on the CPU without autograd, computed in NumPy
+    (the same formula, a quarter of the time there)."""
+    host = host_numpy(rotvec) if is_torch(rotvec) else None
+    return rodrigues(rotvec) if host is None else from_numpy(rodrigues(host))
 
 
 def _const(array: np.ndarray, like: Any) -> Any:

@@ -40,3 +40,28 @@ def index(idx: Any, like: Any) -> Any:
         torch = sys.modules["torch"]
         return torch.as_tensor(np.asarray(idx, dtype=np.int64), device=like.device)
     return np.asarray(idx, dtype=np.int64)
+
+
+# Up to this batch, per-joint math (Rodrigues, the kinematic chain: dozens of tiny products) runs
+# 2-4x faster in NumPy than in torch, whose per-operation overhead dominates at that size.
+SMALL_BATCH = 64
+
+
+def host_numpy(x: Any, max_batch: int | None = SMALL_BATCH) -> np.ndarray | None:
+    """A NumPy view of a small torch CPU float tensor that autograd is not recording, else None.
+
+    ``max_batch`` bounds the leading dimension (None: any size). NumPy arrays are returned as they are.
+    """
+    if isinstance(x, np.ndarray):
+        return x
+    if not is_torch(x) or x.device.type != "cpu" or (max_batch is not None and x.shape[0] > max_batch):
+        return None
+    torch = sys.modules["torch"]
+    if x.dtype not in (torch.float32, torch.float64) or (x.requires_grad and torch.is_grad_enabled()):
+        return None
+    return x.detach().numpy()
+
+
+def from_numpy(x: np.ndarray) -> Any:
+    """A torch tensor sharing the memory of ``x``."""
+    return sys.modules["torch"].from_numpy(x)

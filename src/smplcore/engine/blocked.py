@@ -16,6 +16,7 @@ so callers use it only when no gradient is recorded.
 
 from __future__ import annotations
 
+import math
 import sys
 from dataclasses import dataclass
 from typing import Any
@@ -90,9 +91,13 @@ def posed_vertices(feats: Any, transforms: Any, blend_basis: Any, blocks: tuple[
     tmp_buf, scratch_buf = empty((sub * size,), feats), empty((sub * size,), feats)
     for block in blocks:
         start, stop, n = block.start, block.stop, block.stop - block.start
-        rest = rest_buf[: 3 * batch * n].reshape(3, batch, n)
-        for c in range(3):
-            _matmul(feats, basis[:, c * num_verts + start: c * num_verts + stop], rest[c])
+        if n == num_verts:  # one block: one product (three strided ones are slow for a few bodies)
+            rest = _matmul(feats, basis, rest_buf[: 3 * batch * n].reshape(batch, 3 * n)).reshape(batch, 3, n)
+            rest = rest.transpose(1, 0, 2) if is_numpy(rest) else rest.transpose(0, 1)
+        else:
+            rest = rest_buf[: 3 * batch * n].reshape(3, batch, n)
+            for c in range(3):
+                _matmul(feats, basis[:, c * num_verts + start: c * num_verts + stop], rest[c])
         joint_rows = (per_joint if block.joints is None else per_joint[block.joints]).T
         for b0 in range(0, batch, sub):
             b1 = min(batch, b0 + sub)
@@ -139,7 +144,7 @@ def empty(shape: tuple[int, ...], like: Any) -> Any:
         return np.empty(shape, dtype=like.dtype)
     torch = sys.modules["torch"]
     np_dtype = {torch.float32: np.float32, torch.float64: np.float64}.get(like.dtype)
-    if like.device.type == "cpu" and np_dtype is not None and np.prod(shape) * like.element_size() >= 1 << 22:
+    if like.device.type == "cpu" and np_dtype is not None and math.prod(shape) * like.element_size() >= 1 << 22:
         return torch.from_numpy(np.empty(shape, dtype=np_dtype))
     return torch.empty(shape, dtype=like.dtype, device=like.device)
 

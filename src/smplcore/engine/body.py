@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from smplcore.engine import blocked
-from smplcore.engine.backend import index, namespace
+from smplcore.engine.backend import from_numpy, host_numpy, index, is_torch, namespace
 from smplcore.engine.rotations import pose_features
 from smplcore.engine.skeleton import KinematicTree, chain, records_gradients, skin, skinning_transforms
 
@@ -147,16 +147,26 @@ def shaped_vertices(coeffs: Any, arrays: BodyArrays) -> Any:
     return rest_vertices(coeffs, None, arrays).mT
 
 
-def _depth_ordered_joints(coeffs: Any, arrays: BodyArrays) -> tuple[Any, Any]:
+def _depth_ordered_joints(coeffs: Any, joint_basis: Any, tree: KinematicTree) -> tuple[Any, Any]:
     """(B, J, 3) rest joints and (B, J, 3) offsets from their parents, in depth order."""
-    batch, num_joints = coeffs.shape[0], len(arrays.tree.parents)
-    both = (_with_one(coeffs) @ arrays.joint_basis).reshape(batch, 2, num_joints, 3)
+    batch, num_joints = coeffs.shape[0], len(tree.parents)
+    both = (_with_one(coeffs) @ joint_basis).reshape(batch, 2, num_joints, 3)
     return both[:, 0], both[:, 1]
+
+
+def pose_skeleton(coeffs: Any, rotmats: Any, joint_basis: Any, tree: KinematicTree) -> tuple[Any, Any]:
+    """(B, J, 3) posed joints (model order) and (B, J, 12) skinning transforms (depth order)."""
+    idx = tree.indices(rotmats)
+    joints, offsets = _depth_ordered_joints(coeffs, joint_basis, tree)
+    local = rotmats if idx["order"] is None else rotmats[:, idx["order"]]
+    world_rot, world_pos = chain(local, offsets, tree)
+    transforms = skinning_transforms(world_rot, world_pos, joints)
+    return (world_pos if idx["inverse"] is None else world_pos[:, idx["inverse"]]), transforms
 
 
 def rest_joints(coeffs: Any, arrays: BodyArrays) -> Any:
     """(B, J, 3) rest-pose joints for (B, K) shape coefficients (no mesh is built)."""
-    joints = _depth_ordered_joints(coeffs, arrays)[0]
+    joints = _depth_ordered_joints(coeffs, arrays.joint_basis, arrays.tree)[0]
     inverse = arrays.tree.indices(coeffs)["inverse"]
     return joints if inverse is None else joints[:, inverse]
 
@@ -180,12 +190,11 @@ def forward(coeffs: Any, rotmats: Any, arrays: BodyArrays, *, vertices: bool = T
     transforms : (B, J, 12) skinning transforms in depth order (the rows of ``arrays.weights_t``),
         for posing any further rest-pose points.
     """
-    idx = arrays.tree.indices(rotmats)
-    joints, offsets = _depth_ordered_joints(coeffs, arrays)
-    local = rotmats if idx["order"] is None else rotmats[:, idx["order"]]
-    world_rot, world_pos = chain(local, offsets, arrays.tree)
-    transforms = skinning_transforms(world_rot, world_pos, joints)
-    posed_joints = world_pos if idx["inverse"] is None else world_pos[:, idx["inverse"]]
+    host = [host_numpy(coeffs), host_numpy(rotmats), host_numpy(arrays.joint_basis, max_batch=None)]
+    if is_torch(rotmats) and all(a is not None for a in host):  # small batch: per-joint math is faster in NumPy
+        posed_joints, transforms = (from_numpy(a) for a in pose_skeleton(*host, arrays.tree))
+    else:
+        posed_joints, transforms = pose_skeleton(coeffs, rotmats, arrays.joint_basis, arrays.tree)
     if not vertices:
         return None, posed_joints, transforms
     feats = blend_features(coeffs, rotmats, arrays)
