@@ -181,3 +181,22 @@ def test_vertex_blocks_hold_exactly_the_nonzero_weights():
         dense[joints] = b.weights_t
         np.testing.assert_array_equal(dense, weights_t[:, b.start:b.stop])
     assert blocks[-1].joints is None and all(len(b.joints) < 7 for b in blocks[:-1] if b.joints is not None)
+
+
+def test_skinning_autograd_node_passes_gradcheck(monkeypatch):
+    from smplcore.engine import skin_autograd
+    from smplcore.engine.blocked import vertex_blocks
+    from smplcore.engine.skeleton import skin
+
+    monkeypatch.setattr(skin_autograd, "_CHUNK_VALUES", 8)  # 2 bodies per chunk over blocks of 4 vertices
+    gen = torch.Generator().manual_seed(5)
+    rest = torch.randn(3, 3, 11, dtype=torch.float64, generator=gen, requires_grad=True)
+    transforms = torch.randn(3, 4, 12, dtype=torch.float64, generator=gen, requires_grad=True)
+    weights_t = torch.rand(4, 11, dtype=torch.float64, generator=gen)
+    weights_t[:2, :4] = 0  # the first block uses joints 2 and 3 only
+    blocks = vertex_blocks(weights_t, 4)
+    assert blocks[0].joints.tolist() == [2, 3]
+    assert torch.autograd.gradcheck(lambda r, t: skin_autograd.skin_with_gradients(r, t, blocks), (rest, transforms))
+    # and it is the same function as the op-by-op formula
+    reference = skin(rest, transforms, weights_t)
+    assert torch.allclose(skin_autograd.skin_with_gradients(rest, transforms, blocks), reference, atol=1e-12)

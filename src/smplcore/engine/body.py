@@ -198,9 +198,8 @@ def forward(coeffs: Any, rotmats: Any, arrays: BodyArrays, *, vertices: bool = T
     if not vertices:
         return None, posed_joints, transforms
     feats = blend_features(coeffs, rotmats, arrays)
-    size = blocked.block_size(feats.shape[0], arrays.weights_t.shape[1])
-    verts = _skin_from_basis(feats, transforms, arrays.blend_basis, arrays.weights_t,
-                             lambda: arrays.vertex_blocks(size), translation)
+    verts = _skin_from_basis(feats, transforms, arrays.blend_basis, arrays.weights_t, arrays.vertex_blocks,
+                             translation)
     return verts, posed_joints, transforms
 
 
@@ -208,16 +207,27 @@ def posed_vertex_subset(coeffs: Any, rotmats: Any, transforms: Any, arrays: Body
     """(B, n, 3) posed vertices ``ids`` only (untranslated), from :func:`forward`'s ``transforms``."""
     basis, weights_t, blocks = arrays.vertex_subset(ids)
     feats = blend_features(coeffs, rotmats, arrays)
-    return _skin_from_basis(feats, transforms, basis, weights_t, lambda: blocks, None)
+    return _skin_from_basis(feats, transforms, basis, weights_t, lambda size: blocks, None)
 
 
-def _skin_from_basis(feats: Any, transforms: Any, basis: Any, weights_t: Any, blocks: Callable[[], Any],
+# Vertices per block under autograd: small enough that a block uses a handful of joints.
+_GRAD_BLOCK = 1024
+
+
+def _skin_from_basis(feats: Any, transforms: Any, basis: Any, weights_t: Any, blocks: Callable[[int], Any],
                      translation: Any) -> Any:
-    """Blend ``feats @ basis`` and skin it: vertex-blocked without autograd, else the plain pass."""
+    """Blend ``feats @ basis`` and skin it: vertex-blocked without autograd; with it, one autograd
+    node for the skinning (torch) unless the weights themselves are being trained. ``blocks(size)``
+    gives the vertex blocks of about ``size`` vertices."""
+    if translation is not None:
+        transforms = namespace(transforms).concat(
+            [transforms[..., :9], transforms[..., 9:] + translation[:, None]], axis=-1)
     if not records_gradients(feats, transforms, basis, weights_t):
-        if translation is not None:
-            transforms = namespace(transforms).concat(
-                [transforms[..., :9], transforms[..., 9:] + translation[:, None]], axis=-1)
-        return blocked.posed_vertices(feats, transforms, basis, blocks())
+        size = blocked.block_size(feats.shape[0], weights_t.shape[1])
+        return blocked.posed_vertices(feats, transforms, basis, blocks(size))
     v = (feats @ basis[: feats.shape[1]]).reshape(feats.shape[0], 3, -1)
-    return skin(v, transforms, weights_t, translation)
+    if not weights_t.requires_grad:
+        from smplcore.engine.skin_autograd import skin_with_gradients
+
+        return skin_with_gradients(v, transforms, blocks(min(weights_t.shape[1], _GRAD_BLOCK)))
+    return skin(v, transforms, weights_t)

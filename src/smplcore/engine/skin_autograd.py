@@ -1,0 +1,107 @@
+"""Linear blend skinning as one autograd node (torch only; imported when gradients are recorded).
+
+Recorded op by op, skinning leaves a B×V×12 tensor of blended transforms, a batched product of
+B·V tiny 3×3 matrices and the zero-filled gradients of its slices in the graph; the backward of
+those tiny products is most of a training step. Here the forward and the backward are written out
+on (bodies, vertices) planes:
+
+* forward: ``G = transforms @ weights`` (one GEMM), then ``x' = G00 x + G01 y + G02 z + G03``, ...;
+* backward, from ``g`` = d loss / d posed vertices:
+  ``d rest_k = Σ_c G[c, k] g_c`` (multiply-adds on planes) and
+  ``d transforms = (g_c · rest_k, g_c) @ weightsᵀ`` (one GEMM),
+
+over blocks of vertices, with only the joints that weight a block, and chunks of bodies, so that
+the per-vertex values stay in cache. ``G`` is recomputed in the
+backward (one GEMM) rather than kept alive between the passes.
+"""
+
+from __future__ import annotations
+
+import torch
+
+# Bodies per chunk: the chunk's bodies × 12 × block per-vertex values stay within a few MB.
+_CHUNK_VALUES = 1 << 18
+
+
+def _body_chunks(batch: int, block: int) -> list[slice]:
+    step = max(1, _CHUNK_VALUES // max(block, 1))
+    return [slice(b0, min(batch, b0 + step)) for b0 in range(0, batch, step)]
+
+
+class _Skin(torch.autograd.Function):
+    @staticmethod
+    def forward(rest: torch.Tensor, transforms: torch.Tensor, blocks: tuple) -> torch.Tensor:
+        batch, _, num_verts = rest.shape
+        per_joint = _per_joint(transforms)
+        out = rest.new_empty(batch, num_verts, 3)
+        for block in blocks:
+            cols, rows = slice(block.start, block.stop), _rows(per_joint, block)
+            for sl in _body_chunks(batch, block.stop - block.start):
+                g = _blended(rows, block, sl)
+                x, y, z = rest[sl, :, cols].unbind(1)
+                for c in range(3):  # x' = G[c,0] x + G[c,1] y + G[c,2] z + G[c,3]
+                    o = torch.addcmul(g[:, 9 + c], g[:, 3 * c], x)
+                    o.addcmul_(g[:, 3 * c + 1], y)
+                    torch.addcmul(o, g[:, 3 * c + 2], z, out=out[sl, cols, c])
+        return out
+
+    @staticmethod
+    def setup_context(ctx, inputs, output) -> None:
+        rest, transforms, blocks = inputs
+        ctx.save_for_backward(rest, transforms)
+        ctx.blocks = blocks
+
+    @staticmethod
+    def backward(ctx, grad_out: torch.Tensor):
+        rest, transforms = ctx.saved_tensors
+        batch, _, num_verts = rest.shape
+        per_joint = _per_joint(transforms)
+        grad_planes = grad_out.permute(0, 2, 1).contiguous()  # (B, 3, V): d/dx', d/dy', d/dz'
+        grad_rest = torch.empty_like(rest) if ctx.needs_input_grad[0] else None
+        grad_per_joint = torch.zeros_like(per_joint) if ctx.needs_input_grad[1] else None
+        for block in ctx.blocks:
+            cols, rows, n = slice(block.start, block.stop), _rows(per_joint, block), block.stop - block.start
+            for sl in _body_chunks(batch, n):
+                g_out = grad_planes[sl, :, cols]
+                if grad_rest is not None:
+                    g = _blended(rows, block, sl)
+                    for k in range(3):  # d rest_k = G[0,k] g_x + G[1,k] g_y + G[2,k] g_z
+                        d = torch.mul(g[:, k], g_out[:, 0], out=grad_rest[sl, k, cols])
+                        d.addcmul_(g[:, 3 + k], g_out[:, 1]).addcmul_(g[:, 6 + k], g_out[:, 2])
+                if grad_per_joint is not None:  # d G[c,k] = g_c rest_k, d G[c,3] = g_c; then to the joints
+                    m = g_out.shape[0]
+                    planes = rest.new_empty(m, 12, n)
+                    torch.mul(g_out[:, :, None], rest[sl, None, :, cols], out=planes[:, :9].view(m, 3, 3, n))
+                    planes[:, 9:] = g_out
+                    contribution = block.weights_t @ planes.reshape(m * 12, n).T  # (joints of the block, m·12)
+                    target = grad_per_joint[:, 12 * sl.start: 12 * sl.stop]
+                    if block.joints is None:
+                        target += contribution
+                    else:
+                        target.index_add_(0, block.joints, contribution)
+        grad_transforms = None
+        if grad_per_joint is not None:
+            grad_transforms = grad_per_joint.reshape(-1, batch, 12).permute(1, 0, 2)
+        return grad_rest, grad_transforms, None
+
+
+def _per_joint(transforms: torch.Tensor) -> torch.Tensor:
+    """(J, B·12): one row per joint of every body's R00 R01 ... R22 tx ty tz."""
+    return transforms.permute(1, 0, 2).reshape(transforms.shape[1], -1)
+
+
+def _rows(per_joint: torch.Tensor, block) -> torch.Tensor:
+    return per_joint if block.joints is None else per_joint[block.joints]
+
+
+def _blended(rows: torch.Tensor, block, sl: slice) -> torch.Tensor:
+    """(bodies, 12, block) per-vertex transforms of a chunk of bodies over one vertex block."""
+    g = rows[:, 12 * sl.start: 12 * sl.stop].T @ block.weights_t
+    return g.reshape(sl.stop - sl.start, 12, -1)
+
+
+def skin_with_gradients(rest: torch.Tensor, transforms: torch.Tensor, blocks: tuple) -> torch.Tensor:
+    """(B, V, 3) skinned vertices from (B, 3, V) rest vertices and (B, J, 12) transforms (translation
+    folded in), differentiable in both. ``blocks`` (:func:`smplcore.engine.blocked.vertex_blocks`)
+    hold the constant weights, cut into vertex blocks with the joints each block uses."""
+    return _Skin.apply(rest, transforms, blocks)
