@@ -1198,9 +1198,10 @@ def render_markdown(
     w(
         "* **GEMM ceiling**: `A @ B` with A (B × (K+P)) and B ((K+P) × 3V), float32, timed in the same rounds as "
         "the B≥64 forwards: with torch and with NumPy, output allocated as in a forward, and with torch into one "
-        "preallocated output (`gemm-torch-out`: no page faults); the ceiling is the fastest of them. (NumPy asks the kernel for transparent huge pages for large arrays, torch does not: "
-        "with THP in `madvise` mode, as here, a fresh torch output is page-faulted in 4 KiB at a time, which "
-        "costs ~1 ms per MB on this VM and is most of the gap between the two GEMMs at B=512.) The open model "
+        "preallocated output (`gemm-torch-out`: no page faults); the ceiling is the fastest of them. (NumPy "
+        "asks the kernel for transparent huge pages for large arrays, torch does not: with THP in `madvise` "
+        "mode, as here, a fresh torch output is page-faulted in 4 KiB at a time, which costs ~0.3-1 ms per MB "
+        "on this VM; smplcore allocates its large buffers through NumPy for that reason.) The open model "
         "has P=0, so its ceiling uses the SMPL-sized inner dimension 217."
     )
     w(

@@ -70,6 +70,13 @@ class ModelSetup:
     keypoints: Keypoints | None = None
     _cache: dict = field(default_factory=dict, repr=False)
 
+    @property
+    def has_pose_mean(self) -> bool:
+        """Whether a mean pose is added to the full pose (checked once)."""
+        if "has_pose_mean" not in self._cache:
+            self._cache["has_pose_mean"] = bool(np.any(self.pose_mean))
+        return self._cache["has_pose_mean"]
+
     def const(self, name: str, array: np.ndarray, like: Any) -> Any:
         """``array`` in the namespace, dtype (for floats) and device of ``like``, converted once."""
         key = (name, type(like).__module__, str(like.dtype), str(getattr(like, "device", "cpu")))
@@ -328,7 +335,7 @@ def evaluate(setup: ModelSetup, arrays: engine.BodyArrays, params: dict[str, Any
             out[block.name] = value
             blocks.append(value)
         full_pose = xp.concat(blocks, axis=1)
-        if np.any(setup.pose_mean):
+        if setup.has_pose_mean:
             full_pose = full_pose + setup.const("pose_mean", setup.pose_mean, zeros)
         out["full_pose"] = full_pose
         rotmats = _rodrigues(full_pose.reshape(batch, -1, 3))
