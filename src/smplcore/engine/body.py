@@ -210,8 +210,10 @@ def posed_vertex_subset(coeffs: Any, rotmats: Any, transforms: Any, arrays: Body
     return _skin_from_basis(feats, transforms, basis, weights_t, lambda size: blocks, None)
 
 
-# Vertices per block under autograd: small enough that a block uses a handful of joints.
+# Vertices per block under autograd: small enough that a block uses a handful of joints; up to
+# _GRAD_FEW_BODIES bodies the whole mesh is one block (fewer operations: fitting runs at B = 1).
 _GRAD_BLOCK = 1024
+_GRAD_FEW_BODIES = 16
 
 
 def _skin_from_basis(feats: Any, transforms: Any, basis: Any, weights_t: Any, blocks: Callable[[int], Any],
@@ -229,5 +231,6 @@ def _skin_from_basis(feats: Any, transforms: Any, basis: Any, weights_t: Any, bl
     if not weights_t.requires_grad:
         from smplcore.engine.skin_autograd import skin_with_gradients
 
-        return skin_with_gradients(v, transforms, blocks(min(weights_t.shape[1], _GRAD_BLOCK)))
+        few = feats.shape[0] <= _GRAD_FEW_BODIES  # per-op overhead dominates: one block
+        return skin_with_gradients(v, transforms, blocks(weights_t.shape[1] if few else _GRAD_BLOCK))
     return skin(v, transforms, weights_t)
