@@ -77,13 +77,12 @@ def posed_vertices(feats: Any, transforms: Any, blend_basis: Any, blocks: tuple[
     blocks : from :func:`vertex_blocks`, covering the V vertices in order.
     """
     batch, num_rows = feats.shape
-    num_joints = transforms.shape[1]
     num_verts = blocks[-1].stop
     size = max(b.stop - b.start for b in blocks)
     basis = blend_basis[:num_rows]
     # (J, B·12): one row per joint, R00 R01 ... R22 tx ty tz of each body; a block gathers its rows
-    per_joint = transforms.transpose(1, 0, 2) if is_numpy(transforms) else transforms.permute(1, 0, 2)
-    per_joint = per_joint.reshape(num_joints, batch * 12)
+    # (a lone block, e.g. the few vertices of the keypoints, takes just its joints' transforms)
+    per_joint = None if len(blocks) == 1 else _per_joint(transforms, None)
     out = empty((batch, num_verts, 3), feats)
     sub = min(batch, max(1, _APPLY_VALUES // size))  # bodies per skinning step
     rest_buf = empty((3 * batch * size,), feats)
@@ -98,7 +97,10 @@ def posed_vertices(feats: Any, transforms: Any, blend_basis: Any, blocks: tuple[
             rest = rest_buf[: 3 * batch * n].reshape(3, batch, n)
             for c in range(3):
                 _matmul(feats, basis[:, c * num_verts + start: c * num_verts + stop], rest[c])
-        joint_rows = (per_joint if block.joints is None else per_joint[block.joints]).T
+        if per_joint is None:
+            joint_rows = _per_joint(transforms, block.joints).T
+        else:
+            joint_rows = (per_joint if block.joints is None else per_joint[block.joints]).T
         for b0 in range(0, batch, sub):
             b1 = min(batch, b0 + sub)
             m = b1 - b0
@@ -112,6 +114,13 @@ def posed_vertices(feats: Any, transforms: Any, blend_basis: Any, blocks: tuple[
                 _muladd(tmp, g[:, 3 * c + 1], y, tmp, scratch)
                 _muladd(tmp, g[:, 3 * c + 2], z, target[..., c], scratch)
     return out
+
+
+def _per_joint(transforms: Any, joints: Any) -> Any:
+    """(J', B·12) rows of the (B, J, 12) transforms of ``joints`` (None: all)."""
+    t = transforms if joints is None else transforms[:, joints]
+    t = t.transpose(1, 0, 2) if is_numpy(t) else t.permute(1, 0, 2)
+    return t.reshape(t.shape[0], -1)
 
 
 def is_numpy(x: Any) -> bool:
