@@ -281,3 +281,28 @@ def test_v_shaped_is_built_on_first_read_from_the_betas_of_the_call(smplx_model)
     trainable = torch.randn(1, 10, requires_grad=True)
     smplx_model(betas=trainable).v_shaped.sum().backward()
     assert trainable.grad is not None and trainable.grad.abs().sum() > 0
+    with torch.no_grad():
+        out = smplx_model(betas=trainable)
+    assert not out.v_shaped.requires_grad  # read outside no_grad, built as the call was: without a graph
+    with torch.inference_mode():
+        out = smplx_model(betas=betas)
+    assert out.v_shaped.is_inference()
+
+
+@pytest.mark.parametrize("batch", [1, 100])
+def test_a_first_call_in_inference_mode_leaves_the_model_usable_with_autograd(batch):
+    """Constants cached during the first call (index tensors, vertex blocks, keypoint subsets) are
+    built outside inference mode, so a later call that records gradients can use them."""
+    model = smplcore.create(model_type="open")
+    gen = torch.Generator().manual_seed(1)
+    params = {"betas": torch.randn(batch, 10, generator=gen), "body_pose": 0.3 * torch.randn(batch, 69, generator=gen)}
+    with torch.inference_mode():
+        first = model(**params)
+        joints_only = model(**params, return_verts=False)
+    assert first.vertices.is_inference()
+    betas = params["betas"].clone().requires_grad_(True)
+    out = model(betas=betas, body_pose=params["body_pose"])
+    (out.vertices.sum() + out.joints.sum()).backward()
+    assert betas.grad is not None and betas.grad.abs().sum() > 0
+    assert (out.vertices - first.vertices).abs().max() < 1e-5
+    assert (out.joints - joints_only.joints).abs().max() < 1e-5

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from smplcore.engine import body as engine
-from smplcore.engine.backend import eye, from_numpy, host_numpy, index, is_torch, namespace
+from smplcore.engine.backend import eye, for_cache, from_numpy, host_numpy, index, is_torch, namespace
 from smplcore.engine.landmarks import barycentric_points, contour_rows
 from smplcore.engine.rotations import rodrigues
 from smplcore.errors import ModelFileError, ShapeError
@@ -82,7 +82,8 @@ class ModelSetup:
         key = (name, type(like).__module__, str(like.dtype), str(getattr(like, "device", "cpu")))
         value = self._cache.get(key)
         if value is None:
-            value = index(array, like) if np.asarray(array).dtype.kind in "iu" else _const(array, like)
+            with for_cache():
+                value = index(array, like) if np.asarray(array).dtype.kind in "iu" else _const(array, like)
             self._cache[key] = value
         return value
 

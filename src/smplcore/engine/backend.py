@@ -8,6 +8,7 @@ The engine uses only what both namespaces spell the same way (``einsum``, ``conc
 from __future__ import annotations
 
 import sys
+from contextlib import nullcontext
 from typing import Any
 
 import numpy as np
@@ -65,3 +66,10 @@ def host_numpy(x: Any, max_batch: int | None = SMALL_BATCH) -> np.ndarray | None
 def from_numpy(x: np.ndarray) -> Any:
     """A torch tensor sharing the memory of ``x``."""
     return sys.modules["torch"].from_numpy(x)
+
+
+def for_cache() -> Any:
+    """A context for creating tensors that are cached across calls: outside torch's inference mode,
+    so that a constant first built under ``torch.inference_mode()`` still works in autograd later."""
+    torch = sys.modules.get("torch")
+    return torch.inference_mode(False) if torch is not None else nullcontext()

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from smplcore.engine import blocked
-from smplcore.engine.backend import from_numpy, host_numpy, index, is_torch, namespace
+from smplcore.engine.backend import for_cache, from_numpy, host_numpy, index, is_torch, namespace
 from smplcore.engine.rotations import pose_features
 from smplcore.engine.skeleton import KinematicTree, chain, records_gradients, skin, skinning_transforms
 
@@ -89,7 +89,8 @@ class BodyArrays:
             self._derived.clear()
             self._derived["owner"] = owner
         if key not in self._derived:
-            self._derived[key] = make()
+            with for_cache():
+                self._derived[key] = make()
         return self._derived[key]
 
     def vertex_blocks(self, size: int) -> tuple[blocked.VertexBlock, ...]:

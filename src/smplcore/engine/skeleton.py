@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from smplcore.engine.backend import index, is_torch, namespace
+from smplcore.engine.backend import for_cache, index, is_torch, namespace
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,15 +65,19 @@ class KinematicTree:
         key = (type(like).__module__, str(getattr(like, "device", "cpu")))
         cached = self._index_cache.get(key)
         if cached is None:
-            identity = self.order == tuple(range(len(self.order)))
-            cached = {
-                "order": None if identity else index(self.order, like),
-                "inverse": None if identity else index(self.order_inverse, like),
-                "parents": index([max(p, 0) for p in self.parents], like),
-                "slots": [index(s, like) for s in self.parent_slots],
-            }
+            with for_cache():
+                cached = self._make_indices(like)
             self._index_cache[key] = cached
         return cached
+
+    def _make_indices(self, like: Any) -> dict[str, Any]:
+        identity = self.order == tuple(range(len(self.order)))
+        return {
+            "order": None if identity else index(self.order, like),
+            "inverse": None if identity else index(self.order_inverse, like),
+            "parents": index([max(p, 0) for p in self.parents], like),
+            "slots": [index(s, like) for s in self.parent_slots],
+        }
 
 
 def world_transforms(rotmats: Any, joints: Any, tree: KinematicTree) -> tuple[Any, Any]:

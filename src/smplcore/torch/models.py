@@ -310,9 +310,20 @@ class BodyModule(nn.Module):
             fields["expression"] = out["expression"]
         if self.SPEC.model_type == "smplx" and return_shaped and return_verts:
             betas = out["betas"][:, : self.num_betas].clone()  # a later in-place edit must not change it
-            fields["v_shaped"] = Deferred(lambda: self._v_shaped(betas))  # built when first read
+            fields["v_shaped"] = Deferred(self._in_current_grad_mode(lambda: self._v_shaped(betas)))
         known = {f for f in self.OUTPUT.__dataclass_fields__}
         return self.OUTPUT(**{k: v for k, v in fields.items() if k in known})
+
+    @staticmethod
+    def _in_current_grad_mode(fn: Callable[[], torch.Tensor]) -> Callable[[], torch.Tensor]:
+        """``fn`` to be run later (a deferred output) under the grad / inference mode of now."""
+        grad, inference = torch.is_grad_enabled(), torch.is_inference_mode_enabled()
+
+        def run() -> torch.Tensor:
+            with torch.inference_mode(inference), torch.set_grad_enabled(grad):
+                return fn()
+
+        return run
 
     def _with_defaults(self, given: dict[str, torch.Tensor | None], use_pose_defaults: bool) -> dict:
         """Fill what the call left out from the module's parameters, without the batch-size trap.
