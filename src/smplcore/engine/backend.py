@@ -63,6 +63,13 @@ def host_numpy(x: Any, max_batch: int | None = SMALL_BATCH) -> np.ndarray | None
     return x.detach().numpy()
 
 
+def array_identity(x: Any) -> tuple:
+    """Where an array's data lives (address, dtype, device): a cache key that changes when it moves."""
+    if is_torch(x):
+        return x.data_ptr(), str(x.dtype), str(x.device)
+    return x.__array_interface__["data"][0], x.dtype.str
+
+
 def from_numpy(x: np.ndarray) -> Any:
     """A torch tensor sharing the memory of ``x``."""
     return sys.modules["torch"].from_numpy(x)

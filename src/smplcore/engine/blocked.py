@@ -82,49 +82,58 @@ def posed_vertices(feats: Any, transforms: Any, blend_basis: Any, blocks: tuple[
     basis = blend_basis[:num_rows]
     # (J, B·12): one row per joint, R00 R01 ... R22 tx ty tz of each body; a block gathers its rows
     # (a lone block, e.g. the few vertices of the keypoints, takes just its joints' transforms)
-    per_joint = None if len(blocks) == 1 else _per_joint(transforms, None)
+    per_joint = None if len(blocks) == 1 else per_joint_rows(transforms)
     out = empty((batch, num_verts, 3), feats)
     sub = min(batch, max(1, _APPLY_VALUES // size))  # bodies per skinning step
     rest_buf = empty((3 * batch * size,), feats)
     blend_buf = empty((12 * sub * size,), feats)
-    tmp_buf, scratch_buf = empty((sub * size,), feats), empty((sub * size,), feats)
+    tmp_buf = empty((sub * size,), feats)
+    scratch_buf = None if is_torch(feats) else empty((sub * size,), feats)  # NumPy has no fused multiply-add
     for block in blocks:
         start, stop, n = block.start, block.stop, block.stop - block.start
         if n == num_verts:  # one block: one product (three strided ones are slow for a few bodies)
             rest = _matmul(feats, basis, rest_buf[: 3 * batch * n].reshape(batch, 3 * n)).reshape(batch, 3, n)
-            rest = rest.transpose(1, 0, 2) if is_numpy(rest) else rest.transpose(0, 1)
+            rest = rest.transpose(0, 1) if is_torch(rest) else rest.transpose(1, 0, 2)
         else:
             rest = rest_buf[: 3 * batch * n].reshape(3, batch, n)
             for c in range(3):
                 _matmul(feats, basis[:, c * num_verts + start: c * num_verts + stop], rest[c])
-        if per_joint is None:
-            joint_rows = _per_joint(transforms, block.joints).T
-        else:
-            joint_rows = (per_joint if block.joints is None else per_joint[block.joints]).T
+        joint_rows = (per_joint_rows(transforms, block.joints) if per_joint is None
+                      else block_rows(per_joint, block)).T
         for b0 in range(0, batch, sub):
             b1 = min(batch, b0 + sub)
             m = b1 - b0
             g = _matmul(joint_rows[12 * b0: 12 * b1], block.weights_t, blend_buf[: 12 * m * n].reshape(12 * m, n))
             g = g.reshape(m, 12, n)
-            tmp, scratch = tmp_buf[: m * n].reshape(m, n), scratch_buf[: m * n].reshape(m, n)
-            x, y, z = rest[0, b0:b1], rest[1, b0:b1], rest[2, b0:b1]
-            target = out[b0:b1, start:stop]
-            for c in range(3):  # x' = R[c,0] x + R[c,1] y + R[c,2] z + t[c]
-                _muladd(g[:, 9 + c], g[:, 3 * c], x, tmp, scratch)
-                _muladd(tmp, g[:, 3 * c + 1], y, tmp, scratch)
-                _muladd(tmp, g[:, 3 * c + 2], z, target[..., c], scratch)
+            tmp = tmp_buf[: m * n].reshape(m, n)
+            scratch = None if scratch_buf is None else scratch_buf[: m * n].reshape(m, n)
+            apply_blended(g, rest[:, b0:b1], out[b0:b1, start:stop], tmp, scratch)
     return out
 
 
-def _per_joint(transforms: Any, joints: Any) -> Any:
-    """(J', B·12) rows of the (B, J, 12) transforms of ``joints`` (None: all)."""
+def apply_blended(g: Any, rest: Any, target: Any, tmp: Any, scratch: Any = None) -> None:
+    """``target`` (m, n, 3) = per-vertex 3×4 transforms ``g`` (m, 12, n) applied to ``rest`` (3, m, n).
+
+    ``tmp`` is an (m, n) work plane; ``scratch`` another, for NumPy only.
+    """
+    x, y, z = rest[0], rest[1], rest[2]
+    for c in range(3):  # x' = R[c,0] x + R[c,1] y + R[c,2] z + t[c]
+        _muladd(g[:, 9 + c], g[:, 3 * c], x, tmp, scratch)
+        _muladd(tmp, g[:, 3 * c + 1], y, tmp, scratch)
+        _muladd(tmp, g[:, 3 * c + 2], z, target[..., c], scratch)
+
+
+def per_joint_rows(transforms: Any, joints: Any = None) -> Any:
+    """(J', B·12): per joint, every body's R00 R01 ... R22 tx ty tz, from (B, J, 12) transforms;
+    ``joints`` selects some joints first (None: all)."""
     t = transforms if joints is None else transforms[:, joints]
-    t = t.transpose(1, 0, 2) if is_numpy(t) else t.permute(1, 0, 2)
+    t = t.permute(1, 0, 2) if is_torch(t) else t.transpose(1, 0, 2)
     return t.reshape(t.shape[0], -1)
 
 
-def is_numpy(x: Any) -> bool:
-    return isinstance(x, np.ndarray)
+def block_rows(per_joint: Any, block: VertexBlock) -> Any:
+    """The rows of :func:`per_joint_rows` (all joints) that ``block`` uses."""
+    return per_joint if block.joints is None else per_joint[block.joints]
 
 
 def _matmul(a: Any, b: Any, out: Any) -> Any:
@@ -156,13 +165,6 @@ def empty(shape: tuple[int, ...], like: Any) -> Any:
     if like.device.type == "cpu" and np_dtype is not None and math.prod(shape) * like.element_size() >= 1 << 22:
         return torch.from_numpy(np.empty(shape, dtype=np_dtype))
     return torch.empty(shape, dtype=like.dtype, device=like.device)
-
-
-def array_identity(x: Any) -> tuple:
-    """Where an array's data lives (address, dtype, device): a cache key that changes when it moves."""
-    if is_torch(x):
-        return x.data_ptr(), str(x.dtype), str(x.device)
-    return x.__array_interface__["data"][0], x.dtype.str
 
 
 def _contiguous(x: Any) -> Any:

@@ -16,9 +16,16 @@ from typing import Any
 import numpy as np
 
 from smplcore.engine import blocked
-from smplcore.engine.backend import for_cache, from_numpy, host_numpy, index, is_torch, namespace
+from smplcore.engine.backend import array_identity, for_cache, from_numpy, host_numpy, index, is_torch, namespace
 from smplcore.engine.rotations import pose_features
-from smplcore.engine.skeleton import KinematicTree, chain, records_gradients, skin, skinning_transforms
+from smplcore.engine.skeleton import (
+    KinematicTree,
+    chain,
+    records_gradients,
+    skin,
+    skinning_transforms,
+    with_translation,
+)
 
 
 @dataclass
@@ -84,7 +91,7 @@ class BodyArrays:
 
     def derived(self, key: Any, make: Callable[[], Any]) -> Any:
         """``make()``, cached under ``key`` until the basis or the weights move (device, dtype, edit)."""
-        owner = (blocked.array_identity(self.blend_basis), blocked.array_identity(self.weights_t))
+        owner = (array_identity(self.blend_basis), array_identity(self.weights_t))
         if self._derived.get("owner") != owner:
             self._derived.clear()
             self._derived["owner"] = owner
@@ -125,17 +132,15 @@ def blend_features(coeffs: Any, rotmats: Any | None, arrays: BodyArrays) -> Any:
     return feats
 
 
-def rest_vertices(coeffs: Any, rotmats: Any | None, arrays: BodyArrays, columns: Any = None) -> Any:
-    """(B, 3, n) rest-pose vertices, one row per coordinate: template + shape blend (+ pose
-    correctives when ``rotmats`` is given).
+def rest_vertices(coeffs: Any, rotmats: Any | None, arrays: BodyArrays) -> Any:
+    """(B, 3, V) rest-pose vertices, one row per coordinate: template + shape blend (+ pose
+    correctives when ``rotmats`` is given)."""
+    return _blend(blend_features(coeffs, rotmats, arrays), arrays.blend_basis)
 
-    ``columns`` (from :func:`vertex_columns`) selects a subset of the mesh's vertices.
-    """
-    feats = blend_features(coeffs, rotmats, arrays)
-    basis = arrays.blend_basis[: feats.shape[1]]
-    if columns is not None:
-        basis = basis[:, columns]
-    return (feats @ basis).reshape(coeffs.shape[0], 3, -1)
+
+def _blend(feats: Any, basis: Any) -> Any:
+    """(B, 3, n) ``feats @ basis`` over the rows ``feats`` has (a coordinate-major basis of n vertices)."""
+    return (feats @ basis[: feats.shape[1]]).reshape(feats.shape[0], 3, -1)
 
 
 def vertex_columns(ids: np.ndarray, num_verts: int) -> np.ndarray:
@@ -222,13 +227,11 @@ def _skin_from_basis(feats: Any, transforms: Any, basis: Any, weights_t: Any, bl
     """Blend ``feats @ basis`` and skin it: vertex-blocked without autograd; with it, one autograd
     node for the skinning (torch) unless the weights themselves are being trained. ``blocks(size)``
     gives the vertex blocks of about ``size`` vertices."""
-    if translation is not None:
-        transforms = namespace(transforms).concat(
-            [transforms[..., :9], transforms[..., 9:] + translation[:, None]], axis=-1)
+    transforms = with_translation(transforms, translation)
     if not records_gradients(feats, transforms, basis, weights_t):
         size = blocked.block_size(feats.shape[0], weights_t.shape[1])
         return blocked.posed_vertices(feats, transforms, basis, blocks(size))
-    v = (feats @ basis[: feats.shape[1]]).reshape(feats.shape[0], 3, -1)
+    v = _blend(feats, basis)
     if not weights_t.requires_grad:
         from smplcore.engine.skin_autograd import skin_with_gradients
 

@@ -133,6 +133,13 @@ def skinning_transforms(world_rot: Any, world_pos: Any, rest_joints: Any) -> Any
     return xp.concat([world_rot.reshape(batch, num_joints, 9), translation], axis=-1)
 
 
+def with_translation(transforms: Any, translation: Any | None) -> Any:
+    """(B, J, 12) transforms with (B, 3) ``translation`` added to their translation part (None: as is)."""
+    if translation is None:
+        return transforms
+    return namespace(transforms).concat([transforms[..., :9], transforms[..., 9:] + translation[:, None]], axis=-1)
+
+
 # Bodies skinned per chunk: the per-vertex transforms of one chunk (chunk × 12 × V values) stay
 # in cache instead of streaming B × V × 12 values through memory.
 _CHUNK_VALUES = 1 << 22
@@ -164,8 +171,7 @@ def skin(vertices: Any, transforms: Any, weights_t: Any, translation: Any = None
     xp = namespace(transforms)
     batch, num_joints = transforms.shape[:2]
     num_verts = weights_t.shape[1]
-    if translation is not None:
-        transforms = xp.concat([transforms[..., :9], transforms[..., 9:] + translation[:, None]], axis=-1)
+    transforms = with_translation(transforms, translation)
     if records_gradients(vertices, transforms):
         # Training: blended transforms, then one batched 3x3 product per vertex; its backward is two
         # products, where the per-coordinate expressions below would record a dozen elementwise ops.

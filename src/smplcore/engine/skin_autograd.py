@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import torch
 
+from smplcore.engine.blocked import apply_blended, block_rows, per_joint_rows
+
 # Bodies per chunk: the chunk's bodies × 12 × block per-vertex values stay within a few MB.
 _CHUNK_VALUES = 1 << 18
 
@@ -32,19 +34,16 @@ class _Skin(torch.autograd.Function):
     @staticmethod
     def forward(ctx, rest: torch.Tensor, transforms: torch.Tensor, blocks: tuple) -> torch.Tensor:
         batch, _, num_verts = rest.shape
-        per_joint = _per_joint(transforms)
+        per_joint = per_joint_rows(transforms)
         out = rest.new_empty(batch, num_verts, 3)
         tiles = []  # the blended transforms of each (vertex block, body chunk), kept for the backward
         for block in blocks:
-            cols, rows = slice(block.start, block.stop), _rows(per_joint, block)
+            cols, rows = slice(block.start, block.stop), block_rows(per_joint, block)
             for sl in _body_chunks(batch, block.stop - block.start):
                 g = _blended(rows, block, sl)
                 tiles.append(g)
-                x, y, z = rest[sl, :, cols].unbind(1)
-                for c in range(3):  # x' = G[c,0] x + G[c,1] y + G[c,2] z + G[c,3]
-                    o = torch.addcmul(g[:, 9 + c], g[:, 3 * c], x)
-                    o.addcmul_(g[:, 3 * c + 1], y)
-                    torch.addcmul(o, g[:, 3 * c + 2], z, out=out[sl, cols, c])
+                chunk_rest = rest[sl, :, cols].transpose(0, 1)  # (3, bodies, block)
+                apply_blended(g, chunk_rest, out[sl, cols], torch.empty_like(chunk_rest[0]))
         ctx.save_for_backward(rest, transforms)
         ctx.blocks, ctx.tiles = blocks, tiles
         return out
@@ -55,9 +54,9 @@ class _Skin(torch.autograd.Function):
         batch = rest.shape[0]
         grad_planes = grad_out.permute(0, 2, 1).contiguous()  # (B, 3, V): d/dx', d/dy', d/dz'
         grad_rest = torch.empty_like(rest) if ctx.needs_input_grad[0] else None
-        grad_per_joint = torch.zeros(transforms.shape[1], batch * 12, dtype=rest.dtype, device=rest.device)
-        if not ctx.needs_input_grad[1]:
-            grad_per_joint = None
+        grad_per_joint = None
+        if ctx.needs_input_grad[1]:
+            grad_per_joint = torch.zeros(transforms.shape[1], batch * 12, dtype=rest.dtype, device=rest.device)
         tiles = iter(ctx.tiles)
         for block in ctx.blocks:
             cols, n = slice(block.start, block.stop), block.stop - block.start
@@ -82,15 +81,6 @@ class _Skin(torch.autograd.Function):
         if grad_per_joint is not None:
             grad_transforms = grad_per_joint.reshape(-1, batch, 12).permute(1, 0, 2)
         return grad_rest, grad_transforms, None
-
-
-def _per_joint(transforms: torch.Tensor) -> torch.Tensor:
-    """(J, B·12): one row per joint of every body's R00 R01 ... R22 tx ty tz."""
-    return transforms.permute(1, 0, 2).reshape(transforms.shape[1], -1)
-
-
-def _rows(per_joint: torch.Tensor, block) -> torch.Tensor:
-    return per_joint if block.joints is None else per_joint[block.joints]
 
 
 def _blended(rows: torch.Tensor, block, sl: slice) -> torch.Tensor:

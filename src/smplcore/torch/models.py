@@ -136,7 +136,7 @@ class BodyModule(nn.Module):
                 self.register_buffer("neck_kin_chain", torch.as_tensor(setup.neck_chain, dtype=torch.long))
         arrays = setup.body_arrays(as_float)
         self._tree, self._num_coeffs = arrays.tree, arrays.num_coeffs
-        self._vertex_block_cache: dict = {}  # the weights cut into vertex blocks, per block size
+        self._engine_derived: dict = {}  # BodyArrays.derived: vertex blocks and keypoint subsets, kept across calls
         for field in _ENGINE_FIELDS:
             value = getattr(arrays, field)
             self.register_buffer(f"_engine_{field}", value, persistent=False)
@@ -209,8 +209,7 @@ class BodyModule(nn.Module):
 
     def _engine_arrays(self) -> engine.BodyArrays:
         return engine.BodyArrays(self._engine_blend_basis, self._num_coeffs, self._engine_joint_basis,
-                                 self._engine_weights_t, self._tree,
-                                 self._vertex_block_cache)
+                                 self._engine_weights_t, self._tree, self._engine_derived)
 
     # smplx's blend-shape buffers, as views of the engine's single basis (no second copy in memory)
     def _basis_rows(self, start: int, stop: int) -> torch.Tensor:
