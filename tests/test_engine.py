@@ -127,6 +127,17 @@ def test_gradcheck_through_the_whole_model_in_float64(fake_models):
         assert torch.autograd.gradcheck(f, (betas, pose), eps=1e-6, atol=1e-6)
 
 
+def _random_params(model, batch: int, seed: int, grad: bool = False) -> dict:
+    gen = torch.Generator().manual_seed(seed)
+    params = {"betas": torch.randn(batch, model.num_betas, generator=gen),
+              "transl": torch.randn(batch, 3, generator=gen)}
+    if model.SPEC.has_expression:
+        params["expression"] = torch.randn(batch, model.num_expression_coeffs, generator=gen)
+    for block in model.SPEC.pose_blocks:
+        params[block.name] = 0.4 * torch.randn(batch, model.setup.pose_width(block.name), generator=gen)
+    return {k: v.requires_grad_(grad) for k, v in params.items()}
+
+
 @pytest.mark.parametrize("key,model_type,options", [
     ("smpl_neutral_pkl", "smpl", {}),
     ("smplh_neutral_pkl", "smplh", {"use_pca": False}),
@@ -148,13 +159,7 @@ def test_vertex_blocked_inference_equals_the_plain_pass(fake_models, monkeypatch
     num_verts = model.v_template.shape[0]
     sizes = [b.stop - b.start for b in model._engine_arrays().vertex_blocks(blocked.block_size(batch, num_verts))]
     assert len(sizes) > 5 and sum(sizes) == num_verts
-    gen = torch.Generator().manual_seed(3)
-    params = {"betas": torch.randn(batch, model.num_betas, generator=gen),
-              "transl": torch.randn(batch, 3, generator=gen)}
-    if model.SPEC.has_expression:
-        params["expression"] = torch.randn(batch, model.num_expression_coeffs, generator=gen)
-    for block in model.SPEC.pose_blocks:
-        params[block.name] = 0.4 * torch.randn(batch, model.setup.pose_width(block.name), generator=gen)
+    params = _random_params(model, batch, seed=3)
     with torch.no_grad():
         fast = model(**params)
     params["betas"].requires_grad_(True)  # autograd records: the plain pass
@@ -200,3 +205,67 @@ def test_skinning_autograd_node_passes_gradcheck(monkeypatch):
     # and it is the same function as the op-by-op formula
     reference = skin(rest, transforms, weights_t)
     assert torch.allclose(skin_autograd.skin_with_gradients(rest, transforms, blocks), reference, atol=1e-12)
+
+
+def _onednn_or_skip():
+    from smplcore.engine import gemm
+
+    if not gemm.available(torch.zeros(1)):
+        pytest.skip("this torch build has no oneDNN: nothing is packed")
+
+
+@pytest.mark.parametrize("key,options", [
+    ("smpl_neutral_pkl", {}),
+    ("smplx_neutral_npz", {"use_face_contour": True, "use_pca": False}),
+])
+@pytest.mark.parametrize("batch", [1, 9, 600])  # whole mesh (NumPy skeleton), whole mesh, vertex blocks
+def test_packed_products_equal_plain_products(fake_models, monkeypatch, key, options, batch):
+    """oneDNN-packed bases and weights (float32 CPU) give the results and gradients of torch.mm."""
+    import smplcore
+
+    _onednn_or_skip()
+    packed, plain = smplcore.create(fake_models[key], **options), smplcore.create(fake_models[key], **options)
+    params = _random_params(packed, batch, seed=8)
+    with torch.no_grad():
+        b = packed(**params)  # packs its arrays (once, on first use)
+        monkeypatch.setenv("SMPLCORE_ONEDNN", "0")
+        a = plain(**params)
+        monkeypatch.delenv("SMPLCORE_ONEDNN")
+    assert (a.vertices - b.vertices).abs().max() < 1e-5 and (a.joints - b.joints).abs().max() < 1e-5
+    from smplcore.engine import blocked
+
+    arrays = packed._engine_arrays()
+    size = blocked.block_size(batch, arrays.weights_t.shape[1])
+    assert all(blk.packed_blend is None for blk in plain._engine_arrays().vertex_blocks(size))
+    blocks = arrays.vertex_blocks(size)
+    assert all(blk.packed_blend is not None and blk.packed_weights is not None for blk in blocks)
+    assert (len(blocks) > 1) == (batch == 600)
+
+    if batch == 600:
+        return
+    grads = []
+    for model, env in ((plain, "0"), (packed, "1")):
+        monkeypatch.setenv("SMPLCORE_ONEDNN", env)
+        params = _random_params(model, batch, seed=9, grad=True)
+        out = model(**params)
+        ((out.vertices ** 2).sum() + out.joints.sum()).backward()
+        grads.append({k: v.grad for k, v in params.items()})
+    assert arrays.packed_blend() is not None
+    for k in grads[0]:
+        scale = grads[0][k].abs().max().item() + 1
+        assert (grads[0][k] - grads[1][k]).abs().max().item() < 1e-4 * scale, k
+
+
+def test_packed_product_backward_is_the_transposed_product():
+    from smplcore.engine import gemm
+
+    _onednn_or_skip()
+    gen = torch.Generator().manual_seed(1)
+    a = torch.randn(5, 40, generator=gen, requires_grad=True)
+    matrix = torch.randn(40, 300, generator=gen)
+    out = gemm.product_with_gradients(a, gemm.pack(matrix), gemm.pack(matrix.T))
+    grad = torch.randn(5, 300, generator=gen)
+    out.backward(grad)
+    assert torch.allclose(out, a @ matrix, atol=1e-4)
+    assert torch.allclose(a.grad, grad @ matrix.T, atol=1e-4)
+    assert gemm.pack(matrix.double()) is None and gemm.pack(matrix.numpy()) is None  # float32 torch only

@@ -19,6 +19,7 @@ from smplcore.engine import body as engine
 from smplcore.engine.backend import eye, for_cache, from_numpy, host_numpy, index, is_torch, namespace
 from smplcore.engine.landmarks import barycentric_points, contour_rows
 from smplcore.engine.rotations import rodrigues
+from smplcore.engine.skeleton import records_gradients
 from smplcore.errors import ModelFileError, ShapeError
 from smplcore.family import names
 from smplcore.family.specs import FamilySpec, extra_joint_vertex_ids, get_spec
@@ -404,7 +405,9 @@ def _keypoints(setup: ModelSetup, arrays: engine.BodyArrays, coeffs: Any, rotmat
                verts: Any | None, transl: Any | None) -> list[Any]:
     """Extra vertex joints, static landmarks and the dynamic contour, in smplx's order (untranslated)."""
     kp, d = setup.keypoints, setup.data
-    if verts is None:  # joints only: pose just the vertices the keypoints use
+    if verts is None or records_gradients(verts):
+        # joints only, or under autograd (where reading them from the mesh would back-propagate a
+        # mesh-sized gradient): pose just the vertices the keypoints use
         verts = _pose_vertex_subset(setup, coeffs, rotmats, transforms, arrays)
         prefix = "local_"
     else:

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from smplcore.engine import gemm
 from smplcore.engine.backend import index, is_torch
 
 # Values per (B × block) plane: blocks are sized so one block's temporaries (15 planes) stay in
@@ -36,27 +37,43 @@ _APPLY_VALUES = 1 << 17
 
 @dataclass(frozen=True)
 class VertexBlock:
-    """Vertices ``start:stop``, the joints that weight any of them, and those weights (J_b, n)."""
+    """Vertices ``start:stop``, the joints that weight any of them, and those weights (J_b, n).
+
+    Where :mod:`~smplcore.engine.gemm` packs matrices, ``packed_weights`` is ``weights_t`` packed (for
+    ``transforms @ weights_t``), ``packed_weights_t`` its transpose (for the skinning backward) and
+    ``packed_blend`` the block's columns of the blend basis (x, y, z of its vertices).
+    """
 
     start: int
     stop: int
     joints: Any  # index array, or None for all joints
     weights_t: Any
+    packed_weights: Any = None
+    packed_weights_t: Any = None
+    packed_blend: Any = None
 
 
-def vertex_blocks(weights_t: Any, size: int) -> tuple[VertexBlock, ...]:
-    """Cut (J, V) transposed skinning weights into blocks of ``size`` vertices."""
+def vertex_blocks(weights_t: Any, size: int, blend_basis: Any = None) -> tuple[VertexBlock, ...]:
+    """Cut (J, V) transposed skinning weights (and the (R, 3 V) ``blend_basis``, when given and
+    packable) into blocks of ``size`` vertices."""
     num_joints, num_verts = weights_t.shape
     used_by = np.asarray(_to_numpy(weights_t) != 0)
+    pack_blend = blend_basis is not None and gemm.available(blend_basis)
     blocks = []
     for start in range(0, num_verts, size):
         stop = min(start + size, num_verts)
         joints = np.flatnonzero(used_by[:, start:stop].any(axis=1))
         if joints.size == num_joints:
-            blocks.append(VertexBlock(start, stop, None, weights_t[:, start:stop]))
+            idx, block_weights = None, weights_t[:, start:stop]
         else:
             idx = index(joints, weights_t)
-            blocks.append(VertexBlock(start, stop, idx, _contiguous(weights_t[idx][:, start:stop])))
+            block_weights = _contiguous(weights_t[idx][:, start:stop])
+        packed_blend = None
+        if pack_blend:
+            cols = (np.arange(3)[:, None] * num_verts + np.arange(start, stop)[None]).reshape(-1)
+            packed_blend = gemm.pack(blend_basis[:, index(cols, blend_basis)])
+        blocks.append(VertexBlock(start, stop, idx, block_weights, gemm.pack(block_weights),
+                                  gemm.pack(block_weights.T), packed_blend))
     return tuple(blocks)
 
 
@@ -85,13 +102,16 @@ def posed_vertices(feats: Any, transforms: Any, blend_basis: Any, blocks: tuple[
     per_joint = None if len(blocks) == 1 else per_joint_rows(transforms)
     out = empty((batch, num_verts, 3), feats)
     sub = min(batch, max(1, _APPLY_VALUES // size))  # bodies per skinning step
-    rest_buf = empty((3 * batch * size,), feats)
-    blend_buf = empty((12 * sub * size,), feats)
+    packed_blend = num_rows == blend_basis.shape[0] and all(b.packed_blend is not None for b in blocks)
+    rest_buf = None if packed_blend else empty((3 * batch * size,), feats)
+    blend_buf = None if all(b.packed_weights is not None for b in blocks) else empty((12 * sub * size,), feats)
     tmp_buf = empty((sub * size,), feats)
     scratch_buf = None if is_torch(feats) else empty((sub * size,), feats)  # NumPy has no fused multiply-add
     for block in blocks:
         start, stop, n = block.start, block.stop, block.stop - block.start
-        if n == num_verts:  # one block: one product (three strided ones are slow for a few bodies)
+        if packed_blend:
+            rest = gemm.product(feats, block.packed_blend).view(batch, 3, n).transpose(0, 1)
+        elif n == num_verts:  # one block: one product (three strided ones are slow for a few bodies)
             rest = _matmul(feats, basis, rest_buf[: 3 * batch * n].reshape(batch, 3 * n)).reshape(batch, 3, n)
             rest = rest.transpose(0, 1) if is_torch(rest) else rest.transpose(1, 0, 2)
         else:
@@ -103,12 +123,19 @@ def posed_vertices(feats: Any, transforms: Any, blend_basis: Any, blocks: tuple[
         for b0 in range(0, batch, sub):
             b1 = min(batch, b0 + sub)
             m = b1 - b0
-            g = _matmul(joint_rows[12 * b0: 12 * b1], block.weights_t, blend_buf[: 12 * m * n].reshape(12 * m, n))
-            g = g.reshape(m, 12, n)
+            g = _blended_transforms(joint_rows[12 * b0: 12 * b1], block, blend_buf, m * n).reshape(m, 12, n)
             tmp = tmp_buf[: m * n].reshape(m, n)
             scratch = None if scratch_buf is None else scratch_buf[: m * n].reshape(m, n)
             apply_blended(g, rest[:, b0:b1], out[b0:b1, start:stop], tmp, scratch)
     return out
+
+
+def _blended_transforms(rows: Any, block: VertexBlock, buffer: Any, values: int) -> Any:
+    """(12 m, n) ``rows @ block.weights_t``: per-vertex blended transforms of m bodies from the (12 m, J_b)
+    rows of their transforms (a new array when packed, else the first 12 ``values`` of ``buffer``)."""
+    if block.packed_weights is not None:
+        return gemm.product(rows, block.packed_weights)
+    return _matmul(rows, block.weights_t, buffer[: 12 * values].reshape(rows.shape[0], -1))
 
 
 def apply_blended(g: Any, rest: Any, target: Any, tmp: Any, scratch: Any = None) -> None:

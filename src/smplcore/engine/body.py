@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from smplcore.engine import blocked
+from smplcore.engine import blocked, gemm
 from smplcore.engine.backend import array_identity, for_cache, from_numpy, host_numpy, index, is_torch, namespace
 from smplcore.engine.rotations import pose_features
 from smplcore.engine.skeleton import (
@@ -102,7 +102,7 @@ class BodyArrays:
 
     def vertex_blocks(self, size: int) -> tuple[blocked.VertexBlock, ...]:
         """The mesh cut into blocks of ``size`` vertices for :func:`blocked.posed_vertices` (cached)."""
-        return self.derived(("blocks", size), lambda: blocked.vertex_blocks(self.weights_t, size))
+        return self.derived(("blocks", size), lambda: blocked.vertex_blocks(self.weights_t, size, self.blend_basis))
 
     def vertex_subset(self, ids: np.ndarray) -> tuple[Any, Any, tuple[blocked.VertexBlock, ...]]:
         """Basis columns, weights and one vertex block for the vertices ``ids`` only (cached)."""
@@ -110,8 +110,15 @@ class BodyArrays:
             cols = index(vertex_columns(ids, self.weights_t.shape[1]), self.weights_t)
             rows = index(ids, self.weights_t)
             basis, weights_t = self.blend_basis[:, cols], self.weights_t[:, rows]
-            return basis, weights_t, blocked.vertex_blocks(weights_t, max(len(ids), 1))
+            return basis, weights_t, blocked.vertex_blocks(weights_t, max(len(ids), 1), basis)
         return self.derived(("subset", np.asarray(ids).tobytes()), make)
+
+    def packed_blend(self) -> tuple[Any, Any] | None:
+        """The blend basis and its transpose packed for :func:`gemm.product_with_gradients` (cached);
+        None where :mod:`~smplcore.engine.gemm` does not pack."""
+        if not gemm.available(self.blend_basis):
+            return None
+        return self.derived("packed blend", lambda: (gemm.pack(self.blend_basis), gemm.pack(self.blend_basis.T)))
 
     def map(self, fn: Callable[[Any], Any]) -> BodyArrays:
         """The same arrays with ``fn`` applied to each (e.g. a dtype or device change)."""
@@ -205,7 +212,7 @@ def forward(coeffs: Any, rotmats: Any, arrays: BodyArrays, *, vertices: bool = T
         return None, posed_joints, transforms
     feats = blend_features(coeffs, rotmats, arrays)
     verts = _skin_from_basis(feats, transforms, arrays.blend_basis, arrays.weights_t, arrays.vertex_blocks,
-                             translation)
+                             translation, arrays.packed_blend)
     return verts, posed_joints, transforms
 
 
@@ -223,15 +230,22 @@ _GRAD_FEW_BODIES = 16
 
 
 def _skin_from_basis(feats: Any, transforms: Any, basis: Any, weights_t: Any, blocks: Callable[[int], Any],
-                     translation: Any) -> Any:
+                     translation: Any, packed_blend: Callable[[], Any] | None = None) -> Any:
     """Blend ``feats @ basis`` and skin it: vertex-blocked without autograd; with it, one autograd
     node for the skinning (torch) unless the weights themselves are being trained. ``blocks(size)``
-    gives the vertex blocks of about ``size`` vertices."""
+    gives the vertex blocks of about ``size`` vertices; ``packed_blend()`` the basis packed for
+    :func:`gemm.product_with_gradients` (or None)."""
     transforms = with_translation(transforms, translation)
     if not records_gradients(feats, transforms, basis, weights_t):
         size = blocked.block_size(feats.shape[0], weights_t.shape[1])
         return blocked.posed_vertices(feats, transforms, basis, blocks(size))
-    v = _blend(feats, basis)
+    packed = None
+    if packed_blend is not None and not basis.requires_grad and feats.shape[1] == basis.shape[0]:
+        packed = packed_blend()
+    if packed is not None:
+        v = gemm.product_with_gradients(feats, *packed).view(feats.shape[0], 3, -1)
+    else:
+        v = _blend(feats, basis)
     if not weights_t.requires_grad:
         from smplcore.engine.skin_autograd import skin_with_gradients
 

@@ -19,7 +19,8 @@ from __future__ import annotations
 
 import torch
 
-from smplcore.engine.blocked import apply_blended, block_rows, per_joint_rows
+from smplcore.engine import gemm
+from smplcore.engine.blocked import apply_blended, block_rows, empty, per_joint_rows
 
 # Bodies per chunk: the chunk's bodies × 12 × block per-vertex values stay within a few MB.
 _CHUNK_VALUES = 1 << 18
@@ -35,12 +36,19 @@ class _Skin(torch.autograd.Function):
     def forward(ctx, rest: torch.Tensor, transforms: torch.Tensor, blocks: tuple) -> torch.Tensor:
         batch, _, num_verts = rest.shape
         per_joint = per_joint_rows(transforms)
-        out = rest.new_empty(batch, num_verts, 3)
-        tiles = []  # the blended transforms of each (vertex block, body chunk), kept for the backward
+        out = empty((batch, num_verts, 3), rest)
+        # the blended transforms of each (vertex block, body chunk), kept for the backward: one
+        # buffer (allocated in huge pages, see blocked.empty: fresh pages cost more than the products)
+        store = empty((12 * batch * num_verts,), rest)
+        tiles, offset = [], 0
         for block in blocks:
             cols, rows = slice(block.start, block.stop), block_rows(per_joint, block)
-            for sl in _body_chunks(batch, block.stop - block.start):
-                g = _blended(rows, block, sl)
+            n = block.stop - block.start
+            for sl in _body_chunks(batch, n):
+                m = sl.stop - sl.start
+                g = store[offset: offset + 12 * m * n].view(12 * m, n)
+                offset += 12 * m * n
+                g = torch.mm(rows[:, 12 * sl.start: 12 * sl.stop].T, block.weights_t, out=g).view(m, 12, n)
                 tiles.append(g)
                 chunk_rest = rest[sl, :, cols].transpose(0, 1)  # (3, bodies, block)
                 apply_blended(g, chunk_rest, out[sl, cols], torch.empty_like(chunk_rest[0]))
@@ -52,8 +60,11 @@ class _Skin(torch.autograd.Function):
     def backward(ctx, grad_out: torch.Tensor):
         rest, transforms = ctx.saved_tensors
         batch = rest.shape[0]
-        grad_planes = grad_out.permute(0, 2, 1).contiguous()  # (B, 3, V): d/dx', d/dy', d/dz'
-        grad_rest = torch.empty_like(rest) if ctx.needs_input_grad[0] else None
+        grad_planes = empty(rest.shape, rest)  # (B, 3, V): d/dx', d/dy', d/dz'
+        grad_planes.copy_(grad_out.permute(0, 2, 1))
+        grad_rest = empty(rest.shape, rest) if ctx.needs_input_grad[0] else None
+        widest = max(b.stop - b.start for b in ctx.blocks)
+        plane_store = empty((12 * min(batch * widest, max(_CHUNK_VALUES, widest)),), rest)  # a chunk's planes
         grad_per_joint = None
         if ctx.needs_input_grad[1]:
             grad_per_joint = torch.zeros(transforms.shape[1], batch * 12, dtype=rest.dtype, device=rest.device)
@@ -68,10 +79,14 @@ class _Skin(torch.autograd.Function):
                         d.addcmul_(g[:, 3 + k], g_out[:, 1]).addcmul_(g[:, 6 + k], g_out[:, 2])
                 if grad_per_joint is not None:  # d G[c,k] = g_c rest_k, d G[c,3] = g_c; then to the joints
                     m = g_out.shape[0]
-                    planes = rest.new_empty(m, 12, n)
+                    planes = plane_store[: 12 * m * n].view(m, 12, n)
                     torch.mul(g_out[:, :, None], rest[sl, None, :, cols], out=planes[:, :9].view(m, 3, 3, n))
                     planes[:, 9:] = g_out
-                    contribution = block.weights_t @ planes.reshape(m * 12, n).T  # (joints of the block, m·12)
+                    planes = planes.reshape(m * 12, n)
+                    if block.packed_weights_t is not None:  # (joints of the block, m·12)
+                        contribution = gemm.product(planes, block.packed_weights_t).T
+                    else:
+                        contribution = block.weights_t @ planes.T
                     target = grad_per_joint[:, 12 * sl.start: 12 * sl.stop]
                     if block.joints is None:
                         target += contribution
@@ -81,12 +96,6 @@ class _Skin(torch.autograd.Function):
         if grad_per_joint is not None:
             grad_transforms = grad_per_joint.reshape(-1, batch, 12).permute(1, 0, 2)
         return grad_rest, grad_transforms, None
-
-
-def _blended(rows: torch.Tensor, block, sl: slice) -> torch.Tensor:
-    """(bodies, 12, block) per-vertex transforms of a chunk of bodies over one vertex block."""
-    g = rows[:, 12 * sl.start: 12 * sl.stop].T @ block.weights_t
-    return g.reshape(sl.stop - sl.start, 12, -1)
 
 
 def skin_with_gradients(rest: torch.Tensor, transforms: torch.Tensor, blocks: tuple) -> torch.Tensor:

@@ -1,0 +1,53 @@
+"""Products with a constant right operand (a model's bases and skinning weights), prepared once.
+
+Where PyTorch has oneDNN (x86 CPU builds), a float32 CPU matrix is repacked once into oneDNN's
+blocked layout, and every later ``a @ matrix`` runs oneDNN's kernels on it. ``torch.mm`` calls MKL,
+which runs its AVX2 kernels on AMD CPUs: on an AMD EPYC with AVX-512 (bench/RESULTS.md), oneDNN is
+2-3x faster for the SMPL-X blend product at B = 512 and up to 4x for a few bodies; on Intel CPUs the
+two are on a par. Elsewhere (NumPy, float64, GPUs, torch without oneDNN) there is nothing to pack and
+callers use a plain product.
+
+The packed products are for inference: they record no autograd graph.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from typing import Any
+
+from smplcore.engine.backend import is_torch
+
+# SMPLCORE_ONEDNN=0 turns packing off (plain torch.mm everywhere), e.g. to compare the two.
+_ENV = "SMPLCORE_ONEDNN"
+
+
+def available(like: Any) -> bool:
+    """Whether :func:`pack` applies to matrices like ``like`` (a float32 CPU torch tensor, oneDNN present)."""
+    if not is_torch(like) or os.environ.get(_ENV, "1") == "0":
+        return False
+    torch = sys.modules["torch"]
+    return (like.device.type == "cpu" and like.dtype == torch.float32 and torch.backends.mkldnn.is_available()
+            and hasattr(torch.ops.mkldnn, "_linear_pointwise") and hasattr(torch.ops.mkldnn, "_reorder_linear_weight"))
+
+
+def pack(matrix: Any) -> Any | None:
+    """``matrix`` (K, N), packed for :func:`product`; None where packing does not apply."""
+    if not available(matrix):
+        return None
+    torch = sys.modules["torch"]
+    with torch.no_grad():
+        return torch.ops.mkldnn._reorder_linear_weight(matrix.detach().T.contiguous())
+
+
+def product(a: Any, packed: Any) -> Any:
+    """(M, N) ``a @ matrix`` for (M, K) ``a`` (float32, CPU) and ``packed = pack(matrix)``: a new tensor."""
+    return sys.modules["torch"].ops.mkldnn._linear_pointwise(a, packed, None, "none", [], "")
+
+
+def product_with_gradients(a: Any, packed: Any, packed_t: Any) -> Any:
+    """:func:`product` as an autograd node, differentiable in ``a``: ``packed_t`` is the matrix's
+    transpose, packed (the backward is ``grad @ matrix.T``)."""
+    from smplcore.engine.gemm_autograd import packed_product
+
+    return packed_product(a, packed, packed_t)
