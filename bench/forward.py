@@ -89,8 +89,9 @@ def gemm_shape(info: peers.ModelInfo, batch: int) -> tuple[int, int, int]:
 
 class Gemm:
     """The machine's ceiling: a float32 GEMM of the forward's size. ``torch`` and ``numpy`` allocate the
-    output as a forward does; ``torch-out`` writes into one preallocated output (no page faults): the
-    GEMM as fast as this machine runs it."""
+    output as a forward does; ``torch-out`` writes into one preallocated output (no page faults);
+    ``onednn`` runs oneDNN on a B packed once (what smplcore does with its bases, where torch has
+    oneDNN): the fastest of them is the GEMM as fast as this machine runs it."""
 
     grad = False
 
@@ -100,8 +101,14 @@ class Gemm:
         m, k, n = shape
         rng = np.random.default_rng(1)
         a, b = rng.standard_normal((m, k), dtype=np.float32), rng.standard_normal((k, n), dtype=np.float32)
-        self.out = None
-        if kind.startswith("torch"):
+        self.out = self.packed = None
+        if kind == "onednn":
+            import torch
+
+            from smplcore.engine import gemm
+
+            self.a, self.packed = torch.from_numpy(a), gemm.pack(torch.from_numpy(b))
+        elif kind.startswith("torch"):
             import torch
 
             self.a, self.b = torch.from_numpy(a), torch.from_numpy(b)
@@ -115,7 +122,20 @@ class Gemm:
         m, k, n = self.shape
         return 2.0 * m * k * n
 
+    @staticmethod
+    def kinds() -> tuple[str, ...]:
+        """The kinds this machine has (``onednn`` only where smplcore packs for oneDNN)."""
+        import torch
+
+        from smplcore.engine import gemm
+
+        return ("torch", "torch-out", "numpy") + (("onednn",) if gemm.available(torch.zeros(1)) else ())
+
     def run(self) -> Any:
+        if self.packed is not None:
+            from smplcore.engine import gemm
+
+            return gemm.product(self.a, self.packed)
         if self.out is not None:
             import torch
 
@@ -738,8 +758,8 @@ def main(argv: list[str] | None = None) -> int:
             group = Group(model, mode, batch, entries)
             shape = gemm_shape(info, batch)
             if mode == "fwd" and batch >= 64:
-                for kind in ("torch", "torch-out", "numpy"):
-                    backend = kind.split("-")[0]
+                for kind in Gemm.kinds():
+                    backend = "numpy" if kind == "numpy" else "torch"
                     if any(e.kind == backend for e in entries):
                         g = Gemm(kind, shape)
                         group.gemm[kind] = Entry(g.name, backend, g.run, batch, flops=g.flops)
@@ -1039,7 +1059,8 @@ def render_markdown(
     w("")
     w(
         "The GEMM-bound limit is smplx's time over the time of the blend-shape GEMM alone (B × (K+P) @ (K+P) × 3V, "
-        "the best of torch and NumPy): the speed-up over smplx of a forward that did nothing but that GEMM. "
+        "the best of torch (MKL), oneDNN and NumPy): the speed-up over smplx of a forward that did nothing but "
+        "that GEMM. "
         '"fastest peer" = the fastest of body-models and smplfitter, NumPy or torch backend, in the same group. '
         "The B=1 latency is smplcore's time over smplx's. Joints only: smplcore with `return_verts=False` "
         "(skeleton and extra vertex joints, without building the mesh) against smplx's full forward (smplx has no "
@@ -1199,7 +1220,8 @@ def render_markdown(
     w(
         "* **GEMM ceiling**: `A @ B` with A (B × (K+P)) and B ((K+P) × 3V), float32, timed in the same rounds as "
         "the B≥64 forwards: with torch and with NumPy, output allocated as in a forward, and with torch into one "
-        "preallocated output (`gemm-torch-out`: no page faults); the ceiling is the fastest of them. (NumPy "
+        "preallocated output (`gemm-torch-out`: no page faults), and with oneDNN on a packed B (`gemm-onednn`, "
+        "where torch has oneDNN: what smplcore runs); the ceiling is the fastest of them. (NumPy "
         "asks the kernel for transparent huge pages for large arrays, torch does not: with THP in `madvise` "
         "mode, as here, a fresh torch output is page-faulted in 4 KiB at a time, which costs ~0.3-1 ms per MB "
         "on this VM; smplcore allocates its large buffers through NumPy for that reason.) The open model "

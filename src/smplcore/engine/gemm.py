@@ -7,7 +7,15 @@ which runs its AVX2 kernels on AMD CPUs: on an AMD EPYC with AVX-512 (bench/RESU
 two are on a par. Elsewhere (NumPy, float64, GPUs, torch without oneDNN) there is nothing to pack and
 callers use a plain product.
 
-The packed products are for inference: they record no autograd graph.
+The packed products are for inference: they record no autograd graph (see
+:func:`product_with_gradients` for the node that does).
+
+oneDNN allocates each product's output (there is no ``out=``): 1-16 MB per vertex block. glibc serves
+such a request with a fresh ``mmap`` (page-faulted 4 KiB at a time: up to a third of a forward pass)
+unless a larger block was freed before, which raises its dynamic mmap threshold; the first
+:func:`pack` therefore allocates and frees one untouched 24 MiB block, as any program with a large
+temporary would (no memory is touched or kept; a threshold set with ``mallopt`` or
+``MALLOC_MMAP_THRESHOLD_`` disables the dynamic one and is left as it is).
 """
 
 from __future__ import annotations
@@ -20,6 +28,9 @@ from smplcore.engine.backend import is_torch
 
 # SMPLCORE_ONEDNN=0 turns packing off (plain torch.mm everywhere), e.g. to compare the two.
 _ENV = "SMPLCORE_ONEDNN"
+# Above the products' outputs, below glibc's cap on the dynamic threshold (32 MiB on 64-bit).
+_NUDGE_BYTES = 24 << 20
+_malloc_nudged = False
 
 
 def available(like: Any) -> bool:
@@ -36,6 +47,10 @@ def pack(matrix: Any) -> Any | None:
     if not available(matrix):
         return None
     torch = sys.modules["torch"]
+    global _malloc_nudged
+    if not _malloc_nudged:
+        torch.empty(_NUDGE_BYTES // 4, dtype=torch.float32)  # allocated and freed at once, never touched
+        _malloc_nudged = True
     with torch.no_grad():
         return torch.ops.mkldnn._reorder_linear_weight(matrix.detach().T.contiguous())
 
