@@ -37,18 +37,21 @@ class _Skin(torch.autograd.Function):
         batch, _, num_verts = rest.shape
         per_joint = per_joint_rows(transforms)
         out = empty((batch, num_verts, 3), rest)
-        # the blended transforms of each (vertex block, body chunk), kept for the backward: one
-        # buffer (allocated in huge pages, see blocked.empty: fresh pages cost more than the products)
-        store = empty((12 * batch * num_verts,), rest)
+        # the blended transforms of each (vertex block, body chunk), kept for the backward: oneDNN's
+        # outputs where the weights are packed, else one buffer (in huge pages, see blocked.empty)
+        store = None if all(b.packed_weights is not None for b in blocks) else empty((12 * batch * num_verts,), rest)
         tiles, offset = [], 0
         for block in blocks:
             cols, rows = slice(block.start, block.stop), block_rows(per_joint, block)
             n = block.stop - block.start
             for sl in _body_chunks(batch, n):
                 m = sl.stop - sl.start
-                g = store[offset: offset + 12 * m * n].view(12 * m, n)
-                offset += 12 * m * n
-                g = torch.mm(rows[:, 12 * sl.start: 12 * sl.stop].T, block.weights_t, out=g).view(m, 12, n)
+                chunk_rows = rows[:, 12 * sl.start: 12 * sl.stop].T
+                if block.packed_weights is not None:
+                    g = gemm.product(chunk_rows, block.packed_weights).view(m, 12, n)
+                else:
+                    g = torch.mm(chunk_rows, block.weights_t, out=store[offset: offset + 12 * m * n].view(12 * m, n))
+                    g, offset = g.view(m, 12, n), offset + 12 * m * n
                 tiles.append(g)
                 chunk_rest = rest[sl, :, cols].transpose(0, 1)  # (3, bodies, block)
                 apply_blended(g, chunk_rest, out[sl, cols], torch.empty_like(chunk_rest[0]))
