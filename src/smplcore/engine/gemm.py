@@ -3,9 +3,9 @@
 Where PyTorch has oneDNN (x86 CPU builds), a float32 CPU matrix is repacked once into oneDNN's
 blocked layout, and every later ``a @ matrix`` runs oneDNN's kernels on it. ``torch.mm`` calls MKL,
 which runs its AVX2 kernels on AMD CPUs: on an AMD EPYC with AVX-512 (bench/RESULTS.md), oneDNN is
-2-3x faster for the SMPL-X blend product at B = 512 and up to 4x for a few bodies; on Intel CPUs the
-two are on a par. Elsewhere (NumPy, float64, GPUs, torch without oneDNN) there is nothing to pack and
-callers use a plain product.
+2-3x faster for the SMPL-X blend product at B = 512 and up to 4x for a few bodies (Intel CPUs, where
+MKL runs its AVX-512 kernels, were not measured against it). Elsewhere (NumPy, float64, GPUs, torch
+without oneDNN) there is nothing to pack and callers use a plain product.
 
 The packed products are for inference: they record no autograd graph (see
 :func:`product_with_gradients` for the node that does).
