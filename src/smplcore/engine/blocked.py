@@ -53,6 +53,11 @@ class VertexBlock:
     packed_blend: Any = None
 
 
+def vertex_columns(ids: np.ndarray, num_verts: int) -> np.ndarray:
+    """Columns of a coordinate-major ``blend_basis`` holding vertices ``ids`` (x of all, then y, then z)."""
+    return (np.arange(3)[:, None] * num_verts + np.asarray(ids)[None]).reshape(-1)
+
+
 def vertex_blocks(weights_t: Any, size: int, blend_basis: Any = None) -> tuple[VertexBlock, ...]:
     """Cut (J, V) transposed skinning weights (and the (R, 3 V) ``blend_basis``, when given and
     packable) into blocks of ``size`` vertices."""
@@ -70,8 +75,8 @@ def vertex_blocks(weights_t: Any, size: int, blend_basis: Any = None) -> tuple[V
             block_weights = _contiguous(weights_t[idx][:, start:stop])
         packed_blend = None
         if pack_blend:
-            cols = (np.arange(3)[:, None] * num_verts + np.arange(start, stop)[None]).reshape(-1)
-            packed_blend = gemm.pack(blend_basis[:, index(cols, blend_basis)])
+            cols = index(vertex_columns(np.arange(start, stop), num_verts), blend_basis)
+            packed_blend = gemm.pack(blend_basis[:, cols])
         blocks.append(VertexBlock(start, stop, idx, block_weights, gemm.pack(block_weights),
                                   gemm.pack(block_weights.T), packed_blend))
     return tuple(blocks)

@@ -17,6 +17,7 @@ import numpy as np
 
 from smplcore.engine import blocked, gemm
 from smplcore.engine.backend import array_identity, for_cache, from_numpy, host_numpy, index, is_torch, namespace
+from smplcore.engine.blocked import vertex_columns
 from smplcore.engine.rotations import pose_features
 from smplcore.engine.skeleton import (
     KinematicTree,
@@ -148,11 +149,6 @@ def rest_vertices(coeffs: Any, rotmats: Any | None, arrays: BodyArrays) -> Any:
 def _blend(feats: Any, basis: Any) -> Any:
     """(B, 3, n) ``feats @ basis`` over the rows ``feats`` has (a coordinate-major basis of n vertices)."""
     return (feats @ basis[: feats.shape[1]]).reshape(feats.shape[0], 3, -1)
-
-
-def vertex_columns(ids: np.ndarray, num_verts: int) -> np.ndarray:
-    """Columns of ``blend_basis`` holding vertices ``ids`` (x of all, then y, then z)."""
-    return (np.arange(3)[:, None] * num_verts + np.asarray(ids)[None]).reshape(-1)
 
 
 def shaped_vertices(coeffs: Any, arrays: BodyArrays) -> Any:
