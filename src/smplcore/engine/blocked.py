@@ -128,14 +128,14 @@ def posed_vertices(feats: Any, transforms: Any, blend_basis: Any, blocks: tuple[
         for b0 in range(0, batch, sub):
             b1 = min(batch, b0 + sub)
             m = b1 - b0
-            g = _blended_transforms(joint_rows[12 * b0: 12 * b1], block, blend_buf, m * n).reshape(m, 12, n)
+            g = blended_transforms(joint_rows[12 * b0: 12 * b1], block, blend_buf, m * n).reshape(m, 12, n)
             tmp = tmp_buf[: m * n].reshape(m, n)
             scratch = None if scratch_buf is None else scratch_buf[: m * n].reshape(m, n)
             apply_blended(g, rest[:, b0:b1], out[b0:b1, start:stop], tmp, scratch)
     return out
 
 
-def _blended_transforms(rows: Any, block: VertexBlock, buffer: Any, values: int) -> Any:
+def blended_transforms(rows: Any, block: VertexBlock, buffer: Any, values: int) -> Any:
     """(12 m, n) ``rows @ block.weights_t``: per-vertex blended transforms of m bodies from the (12 m, J_b)
     rows of their transforms (a new array when packed, else the first 12 ``values`` of ``buffer``)."""
     if block.packed_weights is not None:

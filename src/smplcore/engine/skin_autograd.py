@@ -20,7 +20,7 @@ from __future__ import annotations
 import torch
 
 from smplcore.engine import gemm
-from smplcore.engine.blocked import apply_blended, block_rows, empty, per_joint_rows
+from smplcore.engine.blocked import apply_blended, blended_transforms, block_rows, empty, per_joint_rows
 
 # Bodies per chunk: the chunk's bodies × 12 × block per-vertex values stay within a few MB.
 _CHUNK_VALUES = 1 << 18
@@ -46,12 +46,9 @@ class _Skin(torch.autograd.Function):
             n = block.stop - block.start
             for sl in _body_chunks(batch, n):
                 m = sl.stop - sl.start
-                chunk_rows = rows[:, 12 * sl.start: 12 * sl.stop].T
-                if block.packed_weights is not None:
-                    g = gemm.product(chunk_rows, block.packed_weights).view(m, 12, n)
-                else:
-                    g = torch.mm(chunk_rows, block.weights_t, out=store[offset: offset + 12 * m * n].view(12 * m, n))
-                    g, offset = g.view(m, 12, n), offset + 12 * m * n
+                chunk_store = None if store is None else store[offset:]
+                g = blended_transforms(rows[:, 12 * sl.start: 12 * sl.stop].T, block, chunk_store, m * n)
+                g, offset = g.view(m, 12, n), offset + 12 * m * n
                 tiles.append(g)
                 chunk_rest = rest[sl, :, cols].transpose(0, 1)  # (3, bodies, block)
                 apply_blended(g, chunk_rest, out[sl, cols], torch.empty_like(chunk_rest[0]))
