@@ -54,9 +54,7 @@ def write_models(root: Path) -> dict[str, dict]:
         d = np.load(OPEN_MODEL_PATH, allow_pickle=False)
         v = np.asarray(d["v_template"], np.float64)
         parents = np.asarray(d["parents"], np.int64)
-        kintree = np.stack([np.where(parents < 0, 4294967295, parents), np.arange(len(parents))]).astype(
-            np.int64
-        )
+        kintree = np.stack([np.where(parents < 0, 4294967295, parents), np.arange(len(parents))]).astype(np.int64)
         arrays = {
             "v_template": v,
             "f": np.asarray(d["faces"], np.uint32),
@@ -84,9 +82,7 @@ def write_models(root: Path) -> dict[str, dict]:
 def write_inputs(root: Path, count: int, frames: int) -> Path:
     from smplcore.motion.synthetic import write_tree
 
-    write_tree(
-        root, [(f"S{i % 4}/seq{i:03d}_poses.npz", frames, 120.0, "female") for i in range(count)], seed=1
-    )
+    write_tree(root, [(f"S{i % 4}/seq{i:03d}_poses.npz", frames, 120.0, "female") for i in range(count)], seed=1)
     return root
 
 
@@ -137,9 +133,7 @@ def run_smplx_loop(tree: Path, out: Path, model: dict, *, threads: int, vertices
         data = np.load(path)
         poses = torch.as_tensor(data["poses"], dtype=torch.float32)
         trans = torch.as_tensor(data["trans"], dtype=torch.float32)
-        betas = torch.as_tensor(data["betas"][: body.num_betas], dtype=torch.float32)[
-            None
-        ]  # smplx caps SMPL+H at 10
+        betas = torch.as_tensor(data["betas"][: body.num_betas], dtype=torch.float32)[None]  # smplx caps SMPL+H at 10
         parts = []
         with torch.no_grad():
             for s in range(0, len(poses), chunk):
@@ -151,9 +145,7 @@ def run_smplx_loop(tree: Path, out: Path, model: dict, *, threads: int, vertices
                     "betas": betas.expand(n, -1),
                 }
                 if model["smplx_type"] == "smplh":
-                    args.update(
-                        body_pose=p[:, 3:66], left_hand_pose=p[:, 66:111], right_hand_pose=p[:, 111:156]
-                    )
+                    args.update(body_pose=p[:, 3:66], left_hand_pose=p[:, 66:111], right_hand_pose=p[:, 111:156])
                 else:
                     args["body_pose"] = torch.cat([p[:, 3:66], torch.zeros(n, 6)], dim=1)
                 res = body(**args)
@@ -174,10 +166,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--output", type=Path, default=REPO / "bench" / "MOTION_RESULTS.md")
     parser.add_argument("--no-smplx", action="store_true", help="skip the smplx baseline")
     parser.add_argument("--repeat", type=int, default=2, help="runs of each case; the fastest is kept")
-    parser.add_argument("--outputs", nargs="+", choices=("joints", "vertices"),
-                        default=["joints", "vertices"])
-    parser.add_argument("--backends", nargs="+", choices=("numpy", "torch"), default=None,
-                        help="smplcore backends to time (default: numpy, and torch when installed)")
+    parser.add_argument("--outputs", nargs="+", choices=("joints", "vertices"), default=["joints", "vertices"])
+    parser.add_argument(
+        "--backends",
+        nargs="+",
+        choices=("numpy", "torch"),
+        default=None,
+        help="smplcore backends to time (default: numpy, and torch when installed)",
+    )
     args = parser.parse_args(argv)
 
     joint_seqs, joint_frames = (8, 2000) if args.quick else (24, 6000)
@@ -238,9 +234,7 @@ def main(argv: list[str] | None = None) -> int:
                         ),
                         key=lambda r: r["fps"],
                     )
-                    rows.append(
-                        (name, what, f"smplx loop, chunks of {chunk} (torch threads = cores)", threads, r)
-                    )
+                    rows.append((name, what, f"smplx loop, chunks of {chunk} (torch threads = cores)", threads, r))
                     print(
                         f"{name:26s} {what:8s} smplx loop  {threads} core(s): {r['fps']:10,.0f} frames/s",
                         flush=True,
@@ -260,7 +254,7 @@ def main(argv: list[str] | None = None) -> int:
         f"{joint_seqs} x {joint_frames} frames for joints, {vert_seqs} x {vert_frames} for vertices and for "
         "the smplx loop (which builds the whole mesh either way). "
         "Wall frames/s count everything from the call to the last output (worker start-up and imports, "
-        "model loading, reading, evaluating, writing float32 outputs); \"busy\" divides by the time the "
+        'model loading, reading, evaluating, writing float32 outputs); "busy" divides by the time the '
         f"workers spent on files only. Best of {args.repeat} runs each. Each smplcore worker uses one "
         "core (one BLAS thread). The smplx loop is the usual script: one process, `smplx.create(...)`, "
         "then per sequence `model(...)` under `torch.no_grad()` on chunks of frames, with torch using as "

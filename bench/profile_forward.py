@@ -60,7 +60,7 @@ def stages(model, x: dict, repeats: int) -> tuple[list[tuple[str, float]], list[
     def blend_gemms():  # the blend GEMM part of posed_vertices, block by block
         for b in blocks:
             for c in range(3):
-                feats @ basis[:, c * num_verts + b.start: c * num_verts + b.stop]
+                feats @ basis[:, c * num_verts + b.start : c * num_verts + b.stop]
 
     rows = transforms.permute(1, 0, 2).reshape(transforms.shape[1], -1)
 

@@ -174,19 +174,14 @@ class GlbReader:
         start = (view.byteOffset or 0) + (acc.byteOffset or 0)
         stride = view.byteStride or dtype.itemsize * width
         rows = (
-            [
-                np.frombuffer(self.blob, dtype, count=width, offset=start + i * stride)
-                for i in range(acc.count)
-            ]
+            [np.frombuffer(self.blob, dtype, count=width, offset=start + i * stride) for i in range(acc.count)]
             if view.byteStride
             else None
         )
         arr = (
             np.stack(rows)
             if rows
-            else np.frombuffer(self.blob, dtype, count=acc.count * width, offset=start).reshape(
-                acc.count, width
-            )
+            else np.frombuffer(self.blob, dtype, count=acc.count * width, offset=start).reshape(acc.count, width)
         )
         if acc.normalized:
             arr = arr / np.iinfo(dtype).max

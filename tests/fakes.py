@@ -268,9 +268,7 @@ class _Skel:
 
 
 def _new_skel(symmetric=True) -> _Skel:
-    return _Skel(
-        names=[], pos=np.zeros((0, 3)), parents=np.zeros(0, dtype=np.int64), radius={}, symmetric=symmetric
-    )
+    return _Skel(names=[], pos=np.zeros((0, 3)), parents=np.zeros(0, dtype=np.int64), radius={}, symmetric=symmetric)
 
 
 _M = np.array([-1.0, 1.0, 1.0])  # mirror x
@@ -278,8 +276,10 @@ _M = np.array([-1.0, 1.0, 1.0])  # mirror x
 
 def _body(skel: _Skel, dy: float = 0.0, with_hand_joints: bool = False):
     """The 22 SMPL body joints (pelvis .. wrists) in SMPL order; returns name -> index."""
+
     def P(x, y, z):
         return np.array([x, y + dy, z])
+
     idx = {}
 
     def pair(name, p, parent_l, parent_r, r):
@@ -746,9 +746,7 @@ def _core(
         rng = np.random.default_rng()
         rng.bit_generator.state = state
         return rng, mesh, dict(d)
-    rng, mesh, d = _core_uncached(
-        model, gender, seed, n_verts, n_faces, skel, n_shape, shape_scale, pose_scale
-    )
+    rng, mesh, d = _core_uncached(model, gender, seed, n_verts, n_faces, skel, n_shape, shape_scale, pose_scale)
     if _CACHE is not None:
         _CACHE[key] = (rng.bit_generator.state, mesh, dict(d))
     return rng, mesh, d
@@ -1439,18 +1437,14 @@ def _write_all(root: Path, seed: int) -> dict:
     p["smpl_male_pkl"] = write_smpl(smpl, "male", "1.0", "pkl", seed)
     p["smpl_female_pkl"] = write_smpl(smpl, "female", "1.0", "pkl", seed)
     p["smpl_kid_template"] = write_kid_template(smpl, "smpl", seed)
-    p["official_smpl_f_v1_0_pkl"] = _link(
-        p["smpl_female_pkl"], off / "smpl" / "basicModel_f_lbs_10_207_0_v1.0.0.pkl"
-    )
+    p["official_smpl_f_v1_0_pkl"] = _link(p["smpl_female_pkl"], off / "smpl" / "basicModel_f_lbs_10_207_0_v1.0.0.pkl")
     p["official_smpl_neutral_v1_1_pkl"] = _link(
         p["smpl_neutral_pkl"], off / "smpl" / "basicmodel_neutral_lbs_10_207_0_v1.1.0.pkl"
     )
     _CACHE.clear()
     p["smplh_neutral_pkl"] = write_smplh(smplh, "neutral", "pkl", seed)
     p["smplh_female_npz"] = write_smplh(smplh, "female", "npz", seed, amass=True, hand_pca=True)
-    p["official_smplh_male_pkl"] = write_smplh(
-        off / "smplh", "male", "pkl", seed, hand_pca=False, official_name=True
-    )
+    p["official_smplh_male_pkl"] = write_smplh(off / "smplh", "male", "pkl", seed, hand_pca=False, official_name=True)
     p["official_smplh_amass_neutral_npz"] = write_smplh(
         off / "smplh_amass", "neutral", "npz", seed, amass=True, official_name=True
     )

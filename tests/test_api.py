@@ -49,8 +49,12 @@ def test_num_betas_is_not_capped_at_10(fake_models):
     """A 16-component SMPL+H file gives 16 betas (smplx silently keeps 10)."""
     model = smplcore.create(fake_models["smplh_female_npz"], use_pca=False, num_betas=16)
     assert model.num_betas == 16
-    assert _quiet_smplx(str(fake_models["root"]), model_type="smplh", gender="female", ext="npz", use_pca=False,
-                        num_betas=16).num_betas == 10
+    assert (
+        _quiet_smplx(
+            str(fake_models["root"]), model_type="smplh", gender="female", ext="npz", use_pca=False, num_betas=16
+        ).num_betas
+        == 10
+    )
     betas = torch.zeros(1, 16)
     betas[0, 12] = 2.0
     with torch.no_grad():
@@ -68,11 +72,24 @@ def test_expression_broadcasts_over_the_batch(smplx_model):
     assert torch.equal(a.vertices, b.vertices)
 
 
-@pytest.mark.parametrize("model_type,blocks", [
-    ("smplh", {"global_orient": 1, "body_pose": 21, "left_hand_pose": 15, "right_hand_pose": 15}),
-    ("smplx", {"global_orient": 1, "body_pose": 21, "jaw_pose": 1, "leye_pose": 1, "reye_pose": 1,
-               "left_hand_pose": 15, "right_hand_pose": 15}),
-])
+@pytest.mark.parametrize(
+    "model_type,blocks",
+    [
+        ("smplh", {"global_orient": 1, "body_pose": 21, "left_hand_pose": 15, "right_hand_pose": 15}),
+        (
+            "smplx",
+            {
+                "global_orient": 1,
+                "body_pose": 21,
+                "jaw_pose": 1,
+                "leye_pose": 1,
+                "reye_pose": 1,
+                "left_hand_pose": 15,
+                "right_hand_pose": 15,
+            },
+        ),
+    ],
+)
 def test_pose2rot_false_works_for_smplh_and_smplx(fake_models, model_type, blocks):
     """Rotation matrices through the non-Layer classes equal the Layer classes (smplx raises)."""
     root = fake_models["root"]
@@ -175,8 +192,13 @@ def test_outputs_behave_like_smplx_outputs(smplx_model):
 def test_joints_only_path_equals_the_full_forward(fake_models):
     model = smplcore.create(fake_models["root"], model_type="smplx", ext="npz", use_face_contour=True)
     torch.manual_seed(1)
-    params = {"body_pose": torch.randn(3, 63) * 0.3, "global_orient": torch.randn(3, 3) * 0.5,
-              "betas": torch.randn(3, 10), "expression": torch.randn(3, 10), "jaw_pose": torch.randn(3, 3) * 0.2}
+    params = {
+        "body_pose": torch.randn(3, 63) * 0.3,
+        "global_orient": torch.randn(3, 3) * 0.5,
+        "betas": torch.randn(3, 10),
+        "expression": torch.randn(3, 10),
+        "jaw_pose": torch.randn(3, 3) * 0.2,
+    }
     with torch.no_grad():
         full = model(**params)
         fast = model(return_verts=False, **params)
@@ -216,9 +238,15 @@ def test_left_mano_shapedirs_fix_is_opt_in(fake_models):
     assert not torch.allclose(a, b)
 
 
-@pytest.mark.parametrize("key,cls", [("official_smpl_f_v1_0_pkl", "SMPL"),
-                                     ("official_smplh_amass_neutral_npz", "SMPLH"),
-                                     ("mano_left_pkl", "MANO"), ("smplx_male_npz", "SMPLX")])
+@pytest.mark.parametrize(
+    "key,cls",
+    [
+        ("official_smpl_f_v1_0_pkl", "SMPL"),
+        ("official_smplh_amass_neutral_npz", "SMPLH"),
+        ("mano_left_pkl", "MANO"),
+        ("smplx_male_npz", "SMPLX"),
+    ],
+)
 def test_create_takes_the_model_type_from_the_file(fake_models, key, cls):
     options = {"use_pca": False} if cls == "SMPLH" else {}
     with warnings.catch_warnings():

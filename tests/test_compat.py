@@ -97,8 +97,10 @@ def test_lbs_functions_match_smplx_lbs(fake_models):
     from smplcore.io import load_model
 
     data = load_model(fake_models["smpl_male_pkl"])
-    args = [torch.tensor(np.asarray(a), dtype=torch.float32) for a in
-            (data.v_template, data.shapedirs, data.posedirs.reshape(-1, 207).T, data.J_regressor, data.weights)]
+    args = [
+        torch.tensor(np.asarray(a), dtype=torch.float32)
+        for a in (data.v_template, data.shapedirs, data.posedirs.reshape(-1, 207).T, data.J_regressor, data.weights)
+    ]
     parents = torch.tensor(data.parents)
     torch.manual_seed(0)
     betas, pose = torch.randn(2, 10), torch.randn(2, 72) * 0.3

@@ -48,9 +48,23 @@ def test_demo_with_a_users_model_pose_file_and_ply(tmp_path, fake_models):
     pose_file = tmp_path / "pose.npy"
     np.save(pose_file, np.zeros((2, 72)))
     out = tmp_path / "out"
-    status = _render_or_skip(lambda: main(["demo", "--model-path", str(fake_models["smpl_neutral_pkl"]),
-                                           "--pose", str(pose_file), "--format", "ply", "--betas", "1,-0.5",
-                                           "--out", str(out)]))
+    status = _render_or_skip(
+        lambda: main(
+            [
+                "demo",
+                "--model-path",
+                str(fake_models["smpl_neutral_pkl"]),
+                "--pose",
+                str(pose_file),
+                "--format",
+                "ply",
+                "--betas",
+                "1,-0.5",
+                "--out",
+                str(out),
+            ]
+        )
+    )
     assert status == 0
     mesh = trimesh.load(out / "body.ply", process=False)
     assert mesh.vertices.shape == (6890, 3)

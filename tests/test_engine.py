@@ -15,8 +15,9 @@ def test_rodrigues_matches_scipy_over_all_angles():
     rng = np.random.default_rng(0)
     axes = rng.normal(size=(400, 3))
     axes /= np.linalg.norm(axes, axis=1, keepdims=True)
-    angles = np.concatenate([[0.0, 1e-12, 1e-7, 1e-4, 1e-3, 0.5, np.pi - 1e-6, np.pi, 2.5 * np.pi],
-                             rng.uniform(0, 2 * np.pi, 391)])
+    angles = np.concatenate(
+        [[0.0, 1e-12, 1e-7, 1e-4, 1e-3, 0.5, np.pi - 1e-6, np.pi, 2.5 * np.pi], rng.uniform(0, 2 * np.pi, 391)]
+    )
     rotvec = axes * angles[:, None]
     np.testing.assert_allclose(rodrigues(rotvec), Rotation.from_rotvec(rotvec).as_matrix(), atol=1e-14)
 
@@ -27,8 +28,16 @@ def test_rodrigues_is_exactly_identity_at_zero():
 
 @pytest.mark.parametrize("point", ["zero", "tiny", "pi", "random"])
 def test_rodrigues_gradients_are_finite_and_correct(point):
-    rotvec = {"zero": torch.zeros(1, 3), "tiny": torch.full((1, 3), 1e-5), "pi": torch.tensor([[0.0, np.pi, 0.0]]),
-              "random": torch.tensor([[0.3, -1.2, 0.7]])}[point].double().requires_grad_(True)
+    rotvec = (
+        {
+            "zero": torch.zeros(1, 3),
+            "tiny": torch.full((1, 3), 1e-5),
+            "pi": torch.tensor([[0.0, np.pi, 0.0]]),
+            "random": torch.tensor([[0.3, -1.2, 0.7]]),
+        }[point]
+        .double()
+        .requires_grad_(True)
+    )
     assert torch.autograd.gradcheck(rodrigues, (rotvec,), eps=1e-6, atol=1e-8)
     rodrigues(rotvec).sum().backward()
     assert torch.isfinite(rotvec.grad).all()
@@ -62,13 +71,16 @@ def test_kinematic_tree_rejects_children_before_parents():
         KinematicTree.from_parents([-1, 2, 0])
 
 
-@pytest.mark.parametrize("key,model_type,options", [
-    ("smpl_neutral_pkl", "smpl", {}),
-    ("smplh_neutral_pkl", "smplh", {"use_pca": True, "num_pca_comps": 12}),
-    ("smplx_neutral_npz", "smplx", {"use_face_contour": True, "num_expression_coeffs": 20}),
-    ("mano_left_pkl", "mano", {"use_pca": False}),
-    ("flame_neutral_pkl", "flame", {"use_face_contour": True}),
-])
+@pytest.mark.parametrize(
+    "key,model_type,options",
+    [
+        ("smpl_neutral_pkl", "smpl", {}),
+        ("smplh_neutral_pkl", "smplh", {"use_pca": True, "num_pca_comps": 12}),
+        ("smplx_neutral_npz", "smplx", {"use_face_contour": True, "num_expression_coeffs": 20}),
+        ("mano_left_pkl", "mano", {"use_pca": False}),
+        ("flame_neutral_pkl", "flame", {"use_face_contour": True}),
+    ],
+)
 @pytest.mark.parametrize("dtype", ["float32", "float64"])
 def test_numpy_front_end_equals_torch_front_end(fake_models, key, model_type, options, dtype):
     import smplcore
@@ -104,8 +116,11 @@ def test_float64_matches_a_float64_reference(fake_models):
         ref = smplx.create(str(fake_models["root"]), model_type="smpl", dtype=torch.float64)
     ours = smplcore.create(fake_models["root"], model_type="smpl", dtype=torch.float64)
     rng = np.random.default_rng(4)
-    params = {"betas": torch.tensor(rng.normal(size=(2, 10))), "body_pose": torch.tensor(rng.normal(0, .5, (2, 69))),
-              "global_orient": torch.tensor(rng.normal(0, .5, (2, 3)))}
+    params = {
+        "betas": torch.tensor(rng.normal(size=(2, 10))),
+        "body_pose": torch.tensor(rng.normal(0, 0.5, (2, 69))),
+        "global_orient": torch.tensor(rng.normal(0, 0.5, (2, 3))),
+    }
     with torch.no_grad():
         diff = (ours(**params).vertices - ref(**params).vertices).abs().max().item()
     assert ours.v_template.dtype == torch.float64
@@ -129,8 +144,10 @@ def test_gradcheck_through_the_whole_model_in_float64(fake_models):
 
 def _random_params(model, batch: int, seed: int, grad: bool = False) -> dict:
     gen = torch.Generator().manual_seed(seed)
-    params = {"betas": torch.randn(batch, model.num_betas, generator=gen),
-              "transl": torch.randn(batch, 3, generator=gen)}
+    params = {
+        "betas": torch.randn(batch, model.num_betas, generator=gen),
+        "transl": torch.randn(batch, 3, generator=gen),
+    }
     if model.SPEC.has_expression:
         params["expression"] = torch.randn(batch, model.num_expression_coeffs, generator=gen)
     for block in model.SPEC.pose_blocks:
@@ -138,13 +155,16 @@ def _random_params(model, batch: int, seed: int, grad: bool = False) -> dict:
     return {k: v.requires_grad_(grad) for k, v in params.items()}
 
 
-@pytest.mark.parametrize("key,model_type,options", [
-    ("smpl_neutral_pkl", "smpl", {}),
-    ("smplh_neutral_pkl", "smplh", {"use_pca": False}),
-    ("smplx_neutral_npz", "smplx", {"use_face_contour": True}),
-    ("mano_right_pkl", "mano", {"use_pca": False}),
-    ("flame_neutral_pkl", "flame", {}),
-])
+@pytest.mark.parametrize(
+    "key,model_type,options",
+    [
+        ("smpl_neutral_pkl", "smpl", {}),
+        ("smplh_neutral_pkl", "smplh", {"use_pca": False}),
+        ("smplx_neutral_npz", "smplx", {"use_face_contour": True}),
+        ("mano_right_pkl", "mano", {"use_pca": False}),
+        ("flame_neutral_pkl", "flame", {}),
+    ],
+)
 @pytest.mark.parametrize("batch", [8, 70])  # the skeleton in NumPy (small batch) and in torch
 def test_vertex_blocked_inference_equals_the_plain_pass(fake_models, monkeypatch, key, model_type, options, batch):
     """The no-grad path (mesh cut into vertex blocks, joints per block) equals the autograd path."""
@@ -184,7 +204,7 @@ def test_vertex_blocks_hold_exactly_the_nonzero_weights():
         dense = np.zeros((7, b.stop - b.start))
         joints = np.arange(7) if b.joints is None else b.joints
         dense[joints] = b.weights_t
-        np.testing.assert_array_equal(dense, weights_t[:, b.start:b.stop])
+        np.testing.assert_array_equal(dense, weights_t[:, b.start : b.stop])
     assert blocks[-1].joints is None and all(len(b.joints) < 7 for b in blocks[:-1] if b.joints is not None)
 
 
@@ -214,10 +234,13 @@ def _onednn_or_skip():
         pytest.skip("this torch build has no oneDNN: nothing is packed")
 
 
-@pytest.mark.parametrize("key,options", [
-    ("smpl_neutral_pkl", {}),
-    ("smplx_neutral_npz", {"use_face_contour": True, "use_pca": False}),
-])
+@pytest.mark.parametrize(
+    "key,options",
+    [
+        ("smpl_neutral_pkl", {}),
+        ("smplx_neutral_npz", {"use_face_contour": True, "use_pca": False}),
+    ],
+)
 @pytest.mark.parametrize("batch", [1, 9, 600])  # whole mesh (NumPy skeleton), whole mesh, vertex blocks
 def test_packed_products_equal_plain_products(fake_models, monkeypatch, key, options, batch):
     """oneDNN-packed bases and weights (float32 CPU) give the results and gradients of torch.mm."""
@@ -248,7 +271,7 @@ def test_packed_products_equal_plain_products(fake_models, monkeypatch, key, opt
         monkeypatch.setenv("SMPLCORE_ONEDNN", env)
         params = _random_params(model, batch, seed=9, grad=True)
         out = model(**params)
-        ((out.vertices ** 2).sum() + out.joints.sum()).backward()
+        ((out.vertices**2).sum() + out.joints.sum()).backward()
         grads.append({k: v.grad for k, v in params.items()})
     assert arrays.packed_blend() is not None
     for k in grads[0]:

@@ -131,9 +131,7 @@ def test_round_trip_every_frame(tmp_path, smpl, order):
     assert bvh["frame_time"] == pytest.approx(1 / 30, abs=1e-8)
     assert bvh["channels"][0] == ["Xposition", "Yposition", "Zposition"] + [f"{a}rotation" for a in order]
     assert all(c == [f"{a}rotation" for a in order] for c in bvh["channels"][1:])
-    np.testing.assert_allclose(
-        bvh_joint_positions(bvh, names), _model_joints(smpl, motion), atol=1e-4, rtol=0
-    )
+    np.testing.assert_allclose(bvh_joint_positions(bvh, names), _model_joints(smpl, motion), atol=1e-4, rtol=0)
     # Offsets are the shaped rest pose's bones; the root's is zero (its position channels are absolute).
     _, rest = smpl.rest_pose(motion.betas)
     expected = rest - rest[np.maximum(smpl.parents, 0)]
@@ -196,9 +194,7 @@ def test_scale_and_frame_rate(tmp_path, smpl):
 
 
 def test_smplh_hands_and_parameter_sets(tmp_path, fake_models):
-    model = smplcore.BodyModel(
-        fake_models["smplh_female_npz"], use_pca=False, flat_hand_mean=True, num_betas=16
-    )
+    model = smplcore.BodyModel(fake_models["smplh_female_npz"], use_pca=False, flat_hand_mean=True, num_betas=16)
     motion = make_motion("smplh", seconds=1.0, fps=30.0, num_betas=16)
     save_bvh(tmp_path / "h.bvh", model, motion)
     bvh = read_bvh(tmp_path / "h.bvh")
@@ -226,9 +222,7 @@ def test_smplh_hands_and_parameter_sets(tmp_path, fake_models):
     bvh = read_bvh(tmp_path / "p.bvh")
     assert bvh["frames"] == 1 and bvh["frame_time"] == pytest.approx(1 / 30, abs=1e-8)
     expected = pca(**{k: np.asarray(v)[None] for k, v in params.items()}).joints[:, :52]
-    np.testing.assert_allclose(
-        bvh_joint_positions(bvh, pca.skeleton_joint_names), expected, atol=1e-4, rtol=0
-    )
+    np.testing.assert_allclose(bvh_joint_positions(bvh, pca.skeleton_joint_names), expected, atol=1e-4, rtol=0)
 
 
 def test_open_model(tmp_path):

@@ -28,17 +28,13 @@ def smplh_motion(tmp_path_factory):
 
 
 def _smplh(fake_models):
-    return smplcore.BodyModel(
-        fake_models["smplh_female_npz"], use_pca=False, flat_hand_mean=True, num_betas=16
-    )
+    return smplcore.BodyModel(fake_models["smplh_female_npz"], use_pca=False, flat_hand_mean=True, num_betas=16)
 
 
 def test_glb_from_amass_motion(tmp_path, capsys, fake_models, smplh_motion):
     path, motion = smplh_motion
     out = tmp_path / "walk.glb"
-    assert (
-        main(["export", str(path), "-o", str(out), "--model-path", str(fake_models["smplh_female_npz"])]) == 0
-    )
+    assert main(["export", str(path), "-o", str(out), "--model-path", str(fake_models["smplh_female_npz"])]) == 0
     printed = capsys.readouterr()
     assert f"wrote {out}" in printed.out and "60 frame(s) at 30 fps" in printed.out
     assert "top 4 of up to" in printed.out and "pose correctives not exported" in printed.out

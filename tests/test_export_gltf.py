@@ -41,9 +41,7 @@ def _check_against_model(path, model, motion, frames, vertex_tol, joint_tol=1e-4
         got_joints = reader.joint_positions(k)
         np.testing.assert_allclose(got_joints, joints, atol=joint_tol, rtol=0, err_msg=f"joints, frame {k}")
         err = float(np.linalg.norm(reader.skinned_vertices(k) - verts, axis=-1).max())
-        assert err <= vertex_tol, (
-            f"frame {k}: vertices off by {err * 1000:.3f} mm (allowed {vertex_tol * 1000:.3f})"
-        )
+        assert err <= vertex_tol, f"frame {k}: vertices off by {err * 1000:.3f} mm (allowed {vertex_tol * 1000:.3f})"
         worst = max(worst, err)
     return worst
 
@@ -89,17 +87,13 @@ def test_report_and_structure(smpl_glb, smpl):
     assert report.file_size == path.stat().st_size
     # The fake SMPL has pose correctives: reported, warned, and measured.
     assert report.pose_corrective_max is not None and report.pose_corrective_max > 0
-    assert any("pose-corrective" in w for w in report.warnings) and any(
-        "pose-corrective" in w for w in caught
-    )
+    assert any("pose-corrective" in w for w in report.warnings) and any("pose-corrective" in w for w in caught)
     reader = GlbReader(path)
     gltf = reader.gltf
     names = smpl.skeleton_joint_names
     assert [gltf.nodes[j].name for j in gltf.skins[0].joints] == names
     rest_verts, rest_joints = smpl.rest_pose(motion.betas[: smpl.num_betas])
-    np.testing.assert_allclose(
-        reader.array(gltf.meshes[0].primitives[0].attributes.POSITION), rest_verts, atol=1e-6
-    )
+    np.testing.assert_allclose(reader.array(gltf.meshes[0].primitives[0].attributes.POSITION), rest_verts, atol=1e-6)
     # Rest transforms: translation joint - parent, no rotation; inverse bind matrices translate(-joint).
     for j, parent in enumerate(smpl.parents):
         node = gltf.nodes[j]
@@ -127,9 +121,7 @@ def test_top4_truncation_error_is_measured(tmp_path, fake_models):
     w = base.skinning_weights.copy()
     spread = np.zeros_like(w)  # up to 3 more joints per vertex (at most 6 influences in all)
     rows = np.repeat(np.arange(len(w)), 3)
-    spread[rows, rng.integers(0, w.shape[1], rows.size)] = (
-        rng.random(rows.size) * (rng.random(rows.size) < 0.5) * 0.08
-    )
+    spread[rows, rng.integers(0, w.shape[1], rows.size)] = rng.random(rows.size) * (rng.random(rows.size) < 0.5) * 0.08
     w = (w + spread) / (w + spread).sum(axis=1, keepdims=True)
     model = smplcore.BodyModel(data=base.setup.data.replace(weights=w, posedirs=None))
     assert 4 < (w > 0).sum(axis=1).max() <= 8
@@ -155,9 +147,7 @@ def test_top4_truncation_error_is_measured(tmp_path, fake_models):
 
 
 def test_smplh_amass_motion_with_hands(tmp_path, fake_models):
-    model = smplcore.BodyModel(
-        fake_models["smplh_female_npz"], use_pca=False, flat_hand_mean=True, num_betas=16
-    )
+    model = smplcore.BodyModel(fake_models["smplh_female_npz"], use_pca=False, flat_hand_mean=True, num_betas=16)
     motion = make_motion("smplh", seconds=1.0, fps=60.0, num_betas=16)
     save_glb(tmp_path / "h.glb", model, motion, vertex_colors=weight_colors(model.skinning_weights))
     result = validate(tmp_path / "h.glb")

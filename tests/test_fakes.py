@@ -329,9 +329,7 @@ def test_smplx_expressions_only_move_the_face(fake_models):
 
 @pytest.mark.parametrize("is_rhand", [True, False])
 def test_mano_loads(fake_models, is_rhand):
-    m = smplx.create(
-        str(fake_models["root"]), model_type="mano", is_rhand=is_rhand, use_pca=True, num_pca_comps=12
-    )
+    m = smplx.create(str(fake_models["root"]), model_type="mano", is_rhand=is_rhand, use_pca=True, num_pca_comps=12)
     assert m.get_num_verts() == 778 and m.get_num_faces() == 1538
     _, j = _check_plausible(_forward(m), max_extent=0.5)
     assert j.shape == (16, 3)  # smplx 0.1.28's MANO does not append the fingertip vertices

@@ -21,26 +21,30 @@ from smplcore.io.safe_pickle import UnsafePickleError
 SRC = Path(__file__).resolve().parents[1] / "src"
 
 
-@pytest.mark.parametrize("key,model_type,num_verts,num_joints,num_betas,num_expr", [
-    ("smpl_neutral_pkl", "smpl", 6890, 24, 300, 0),
-    ("smpl_neutral_npz", "smpl", 6890, 24, 300, 0),
-    ("smpl_male_pkl", "smpl", 6890, 24, 10, 0),
-    ("official_smpl_f_v1_0_pkl", "smpl", 6890, 24, 10, 0),
-    ("official_smpl_neutral_v1_1_pkl", "smpl", 6890, 24, 300, 0),
-    ("smplh_neutral_pkl", "smplh", 6890, 52, 10, 0),
-    ("smplh_female_npz", "smplh", 6890, 52, 16, 0),
-    ("official_smplh_male_pkl", "smplh", 6890, 52, 10, 0),
-    ("official_smplh_amass_neutral_npz", "smplh", 6890, 52, 16, 0),
-    ("smplx_neutral_npz", "smplx", 10475, 55, 300, 100),
-    ("smplx_neutral_pkl", "smplx", 10475, 55, 300, 100),
-    ("smplx_male_npz", "smplx", 10475, 55, 10, 10),
-    ("mano_right_pkl", "mano", 778, 16, 10, 0),
-    ("mano_left_pkl", "mano", 778, 16, 10, 0),
-    ("flame_neutral_pkl", "flame", 5023, 5, 300, 100),
-    ("official_flame_generic_pkl", "flame", 5023, 5, 300, 100),
-])
-def test_every_official_layout_loads_with_its_type_from_the_file(fake_models, key, model_type, num_verts,
-                                                                   num_joints, num_betas, num_expr):
+@pytest.mark.parametrize(
+    "key,model_type,num_verts,num_joints,num_betas,num_expr",
+    [
+        ("smpl_neutral_pkl", "smpl", 6890, 24, 300, 0),
+        ("smpl_neutral_npz", "smpl", 6890, 24, 300, 0),
+        ("smpl_male_pkl", "smpl", 6890, 24, 10, 0),
+        ("official_smpl_f_v1_0_pkl", "smpl", 6890, 24, 10, 0),
+        ("official_smpl_neutral_v1_1_pkl", "smpl", 6890, 24, 300, 0),
+        ("smplh_neutral_pkl", "smplh", 6890, 52, 10, 0),
+        ("smplh_female_npz", "smplh", 6890, 52, 16, 0),
+        ("official_smplh_male_pkl", "smplh", 6890, 52, 10, 0),
+        ("official_smplh_amass_neutral_npz", "smplh", 6890, 52, 16, 0),
+        ("smplx_neutral_npz", "smplx", 10475, 55, 300, 100),
+        ("smplx_neutral_pkl", "smplx", 10475, 55, 300, 100),
+        ("smplx_male_npz", "smplx", 10475, 55, 10, 10),
+        ("mano_right_pkl", "mano", 778, 16, 10, 0),
+        ("mano_left_pkl", "mano", 778, 16, 10, 0),
+        ("flame_neutral_pkl", "flame", 5023, 5, 300, 100),
+        ("official_flame_generic_pkl", "flame", 5023, 5, 300, 100),
+    ],
+)
+def test_every_official_layout_loads_with_its_type_from_the_file(
+    fake_models, key, model_type, num_verts, num_joints, num_betas, num_expr
+):
     data = load_model(fake_models[key])
     assert data.model_type == model_type
     assert data.v_template.shape == (num_verts, 3)
@@ -77,8 +81,16 @@ def test_model_data_is_read_only(fake_models):
 
 def test_loading_needs_no_chumpy(fake_models):
     """In a process where ``import chumpy`` fails, every pickle with chumpy objects still loads."""
-    paths = [str(fake_models[k]) for k in ("smpl_neutral_pkl", "official_smplh_male_pkl", "mano_left_pkl",
-                                           "smplx_neutral_pkl", "official_flame_generic_pkl")]
+    paths = [
+        str(fake_models[k])
+        for k in (
+            "smpl_neutral_pkl",
+            "official_smplh_male_pkl",
+            "mano_left_pkl",
+            "smplx_neutral_pkl",
+            "official_flame_generic_pkl",
+        )
+    ]
     script = textwrap.dedent(f"""
         import sys
         sys.modules["chumpy"] = None  # any import of chumpy now raises ImportError
@@ -146,22 +158,23 @@ def _rewrite_npz(src: Path, dst: Path, change) -> Path:
 
 
 def test_missing_key_names_file_and_key(fake_models, tmp_path):
-    path = _rewrite_npz(fake_models["smpl_neutral_npz"], tmp_path / "SMPL_NEUTRAL.npz",
-                        lambda a: a.pop("weights"))
+    path = _rewrite_npz(fake_models["smpl_neutral_npz"], tmp_path / "SMPL_NEUTRAL.npz", lambda a: a.pop("weights"))
     with pytest.raises(ModelFileError, match=r"SMPL_NEUTRAL\.npz \[key 'weights'\]: missing key"):
         load_model(path)
 
 
 def test_mis_shaped_key_names_expected_and_found_shapes(fake_models, tmp_path):
-    path = _rewrite_npz(fake_models["smpl_neutral_npz"], tmp_path / "SMPL_NEUTRAL.npz",
-                        lambda a: a.update(weights=a["weights"][:, :20]))
+    path = _rewrite_npz(
+        fake_models["smpl_neutral_npz"], tmp_path / "SMPL_NEUTRAL.npz", lambda a: a.update(weights=a["weights"][:, :20])
+    )
     with pytest.raises(ModelFileError, match=r"\[key 'weights'\]: expected shape \(6890, 24\).*found \(6890, 20\)"):
         load_model(path)
 
 
 def test_unknown_keys_in_an_official_file_warn_by_name(fake_models, tmp_path):
-    path = _rewrite_npz(fake_models["smpl_neutral_npz"], tmp_path / "SMPL_NEUTRAL.npz",
-                        lambda a: a.update(mystery=np.zeros(3)))
+    path = _rewrite_npz(
+        fake_models["smpl_neutral_npz"], tmp_path / "SMPL_NEUTRAL.npz", lambda a: a.update(mystery=np.zeros(3))
+    )
     with pytest.warns(UserWarning, match="mystery"):
         load_model(path)
 
@@ -170,6 +183,7 @@ def test_faces_out_of_range_are_rejected(fake_models, tmp_path):
     def corrupt(a):
         a["f"] = a["f"].copy()
         a["f"][0, 0] = 99999
+
     path = _rewrite_npz(fake_models["smpl_neutral_npz"], tmp_path / "SMPL_NEUTRAL.npz", corrupt)
     with pytest.raises(ModelFileError, match=r"\[key 'f'\]: indices must lie in \[0, 6890\)"):
         load_model(path)
@@ -203,8 +217,16 @@ def test_wrong_file_types_are_reported(tmp_path):
         load_model(zipped)
 
 
-@pytest.mark.parametrize("key", ["smpl_neutral_pkl", "official_smplh_amass_neutral_npz", "smplx_neutral_pkl",
-                                 "mano_left_pkl", "official_flame_generic_pkl"])
+@pytest.mark.parametrize(
+    "key",
+    [
+        "smpl_neutral_pkl",
+        "official_smplh_amass_neutral_npz",
+        "smplx_neutral_pkl",
+        "mano_left_pkl",
+        "official_flame_generic_pkl",
+    ],
+)
 def test_convert_writes_a_pickle_free_npz_with_the_same_model(fake_models, tmp_path, key):
     out = convert(fake_models[key], tmp_path / "model.npz")
     with np.load(out, allow_pickle=False) as data:
@@ -212,8 +234,18 @@ def test_convert_writes_a_pickle_free_npz_with_the_same_model(fake_models, tmp_p
         _ = {k: data[k] for k in data.files}  # every key loads without pickle
     original, converted = load_model(fake_models[key]), load_model(out)
     assert converted.model_type == original.model_type and converted.gender == original.gender
-    for name in ("v_template", "shapedirs", "exprdirs", "posedirs", "J_regressor", "weights", "lmk_faces_idx",
-                 "dynamic_lmk_bary_coords", "hands_components_left", "hands_mean_right"):
+    for name in (
+        "v_template",
+        "shapedirs",
+        "exprdirs",
+        "posedirs",
+        "J_regressor",
+        "weights",
+        "lmk_faces_idx",
+        "dynamic_lmk_bary_coords",
+        "hands_components_left",
+        "hands_mean_right",
+    ):
         a, b = getattr(original, name), getattr(converted, name)
         assert (a is None) == (b is None), name
         if a is not None:

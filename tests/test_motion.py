@@ -89,9 +89,7 @@ def test_save_load_round_trip(tmp_path):
 
 
 def test_slice():
-    m = Motion(
-        np.arange(10 * 156, dtype=float).reshape(10, 156) * 1e-4, np.zeros((10, 3)), np.zeros(16), 120.0
-    )
+    m = Motion(np.arange(10 * 156, dtype=float).reshape(10, 156) * 1e-4, np.zeros((10, 3)), np.zeros(16), 120.0)
     s = m.slice(2, 8, 2)
     assert s.num_frames == 3 and s.fps == 60.0
     np.testing.assert_array_equal(s.poses, m.poses[2:8:2])
@@ -166,9 +164,7 @@ def test_gender_rules():
 
 def test_find_model_file_in_smplx_and_amass_layouts(tmp_path):
     smplx_style = fakes.write_smplh(tmp_path / "models" / "smplh", "female", "npz", amass=True)
-    amass_style = fakes.write_smplh(
-        tmp_path / "models" / "smplh", "male", "npz", amass=True, official_name=True
-    )
+    amass_style = fakes.write_smplh(tmp_path / "models" / "smplh", "male", "npz", amass=True, official_name=True)
     root = tmp_path / "models"
     assert find_model_file(root, "smplh", "female") == smplx_style
     assert find_model_file(root, "smplh", "male") == amass_style

@@ -39,8 +39,10 @@ def test_bending_the_left_elbow_moves_the_left_forearm_only(model):
     moved = np.linalg.norm(bent - rest, axis=1)
     owner = model.skinning_weights.argmax(axis=1)
     left_forearm = np.isin(owner, [SMPL_JOINTS.index(n) for n in ("left_wrist", "left_hand")])
-    right_arm = np.isin(owner, [SMPL_JOINTS.index(n) for n in ("right_collar", "right_shoulder", "right_elbow",
-                                                                "right_wrist", "right_hand")])
+    right_arm = np.isin(
+        owner,
+        [SMPL_JOINTS.index(n) for n in ("right_collar", "right_shoulder", "right_elbow", "right_wrist", "right_hand")],
+    )
     assert moved[left_forearm].min() > 0.02
     assert moved[right_arm].max() < 1e-6
 

@@ -70,8 +70,13 @@ def test_smpl_matches_smplx(fake_models, gender, num_betas, batch):
 @pytest.mark.parametrize("use_pca,num_pca_comps", [(True, 6), (True, 12), (True, 45), (False, 6)])
 @pytest.mark.parametrize("flat_hand_mean", [False, True])
 def test_smplh_pkl_matches_smplx(fake_models, use_pca, num_pca_comps, flat_hand_mean):
-    options = {"gender": "neutral", "ext": "pkl", "use_pca": use_pca, "num_pca_comps": num_pca_comps,
-               "flat_hand_mean": flat_hand_mean}
+    options = {
+        "gender": "neutral",
+        "ext": "pkl",
+        "use_pca": use_pca,
+        "num_pca_comps": num_pca_comps,
+        "flat_hand_mean": flat_hand_mean,
+    }
     out = _compare(fake_models, "smplh", options)
     assert out.joints.shape[1:] == (73, 3)
 
@@ -86,29 +91,43 @@ def test_smplh_amass_npz_16_betas_matches_smplx_on_its_first_10(fake_models):
 @pytest.mark.parametrize("num_betas,num_expr", [(10, 10), (300, 100), (16, 50)])
 @pytest.mark.parametrize("use_face_contour", [False, True])
 def test_smplx_matches_smplx(fake_models, ext, num_betas, num_expr, use_face_contour):
-    options = {"gender": "neutral", "ext": ext, "num_betas": num_betas, "num_expression_coeffs": num_expr,
-               "use_face_contour": use_face_contour}
+    options = {
+        "gender": "neutral",
+        "ext": ext,
+        "num_betas": num_betas,
+        "num_expression_coeffs": num_expr,
+        "use_face_contour": use_face_contour,
+    }
     out = _compare(fake_models, "smplx", options)
     assert out.joints.shape[1:] == (144 if use_face_contour else 127, 3)
 
 
-@pytest.mark.parametrize("use_pca,num_pca_comps,flat_hand_mean", [(True, 6, False), (True, 12, True),
-                                                                   (True, 45, False), (False, 6, True)])
+@pytest.mark.parametrize(
+    "use_pca,num_pca_comps,flat_hand_mean", [(True, 6, False), (True, 12, True), (True, 45, False), (False, 6, True)]
+)
 def test_smplx_hands_match_smplx(fake_models, use_pca, num_pca_comps, flat_hand_mean):
-    options = {"gender": "neutral", "ext": "npz", "use_pca": use_pca, "num_pca_comps": num_pca_comps,
-               "flat_hand_mean": flat_hand_mean}
+    options = {
+        "gender": "neutral",
+        "ext": "npz",
+        "use_pca": use_pca,
+        "num_pca_comps": num_pca_comps,
+        "flat_hand_mean": flat_hand_mean,
+    }
     _compare(fake_models, "smplx", options, batch=2)
 
 
 def test_smplx_v10_layout_10_shape_10_expression(fake_models):
-    options = {"gender": "male", "ext": "npz", "num_betas": 10, "num_expression_coeffs": 10,
-               "use_face_contour": True}
+    options = {"gender": "male", "ext": "npz", "num_betas": 10, "num_expression_coeffs": 10, "use_face_contour": True}
     _compare(fake_models, "smplx", options)
 
 
 def test_smplx_kid_template(fake_models):
-    options = {"gender": "neutral", "ext": "npz", "age": "kid",
-               "kid_template_path": str(fake_models["smplx_kid_template"])}
+    options = {
+        "gender": "neutral",
+        "ext": "npz",
+        "age": "kid",
+        "kid_template_path": str(fake_models["smplx_kid_template"]),
+    }
     out = _compare(fake_models, "smplx", options)
     assert out.betas.shape[1] == 11
 
@@ -134,10 +153,16 @@ def test_flame_matches_smplx(fake_models, num_betas, num_expr, use_face_contour)
     assert out.joints.shape[1:] == (73 if use_face_contour else 56, 3)
 
 
-@pytest.mark.parametrize("model_type,options", [
-    ("smpl", {}), ("smplh", {}), ("smplx", {"ext": "npz", "use_face_contour": True}), ("mano", {}),
-    ("flame", {"use_face_contour": True}),
-])
+@pytest.mark.parametrize(
+    "model_type,options",
+    [
+        ("smpl", {}),
+        ("smplh", {}),
+        ("smplx", {"ext": "npz", "use_face_contour": True}),
+        ("mano", {}),
+        ("flame", {"use_face_contour": True}),
+    ],
+)
 @pytest.mark.parametrize("batch", [1, 3])
 def test_layers_with_rotation_matrices_match_smplx(fake_models, model_type, options, batch):
     _compare(fake_models, model_type, options, layer=True, batch=batch)

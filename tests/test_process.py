@@ -137,9 +137,7 @@ def test_rerun_skips_everything_done(first_run, tree):
 def test_rerun_with_other_settings_is_refused(first_run, tree):
     out, options, _ = first_run
     with pytest.raises(ProcessError, match="other settings"):
-        process_tree(
-            tree, out, ProcessOptions(model_path=options.model_path, fps=30.0), workers=0, progress=False
-        )
+        process_tree(tree, out, ProcessOptions(model_path=options.model_path, fps=30.0), workers=0, progress=False)
 
 
 def test_locked_output_folder_is_refused(tree, models, tmp_path):
@@ -268,9 +266,7 @@ def test_humanml3d_recipe_matches_its_extraction(models, tmp_path):
     out22 = tmp_path / "joints22"
     options = options_from_recipe("humanml3d", model_path=str(models), num_joints=22, backend="numpy")
     assert process_tree(src, out22, options, workers=0, progress=False).exit_code == 0
-    np.testing.assert_array_equal(
-        np.load(out22 / "KIT/c_poses.npy"), np.load(out / "KIT/c_poses.npy")[:, :22]
-    )
+    np.testing.assert_array_equal(np.load(out22 / "KIT/c_poses.npy"), np.load(out / "KIT/c_poses.npy")[:, :22])
 
 
 def test_smplx_sequences(tmp_path):
@@ -285,9 +281,7 @@ def test_smplx_sequences(tmp_path):
     )
     assert summary.exit_code == 0
     got = _load(tmp_path / "out" / "x_stageii.npz")
-    model = BodyModel(
-        tmp_path / "models", "smplx", gender="male", ext="npz", use_pca=False, flat_hand_mean=True
-    )
+    model = BodyModel(tmp_path / "models", "smplx", gender="male", ext="npz", use_pca=False, flat_hand_mean=True)
     params = load_motion(seq).model_params("smplx")
     params["betas"] = params["betas"][:, :10]
     np.testing.assert_allclose(got["joints"], model(return_verts=False, **params).joints, atol=2e-5)
@@ -306,9 +300,7 @@ def test_smplx_sequences(tmp_path):
     np.testing.assert_allclose(skeleton, got["joints"][:, :55], atol=1e-5)
 
 
-@pytest.mark.skipif(
-    not OPEN_MODEL_PATH.exists(), reason=f"the open model is not built yet ({OPEN_MODEL_PATH})"
-)
+@pytest.mark.skipif(not OPEN_MODEL_PATH.exists(), reason=f"the open model is not built yet ({OPEN_MODEL_PATH})")
 def test_open_model_vertices(tree, tmp_path):
     options = ProcessOptions(
         vertices=True, dtype="float16", fps=30.0, resample="nearest", backend="numpy", num_betas=10

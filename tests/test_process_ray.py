@@ -15,9 +15,7 @@ from smplcore.motion.synthetic import random_arrays, write_tree
 try:
     import ray
 except ImportError as exc:  # Ray is an optional dependency
-    pytest.skip(
-        f"Ray is not installed ({exc}); pip install ray to run the Ray tests", allow_module_level=True
-    )
+    pytest.skip(f"Ray is not installed ({exc}); pip install ray to run the Ray tests", allow_module_level=True)
 
 pytestmark = pytest.mark.ray
 
@@ -65,9 +63,7 @@ def test_ray_same_outputs_and_resume(ray_session, job):
     assert summary.executor == "Ray CPUs" and summary.workers == 2
     assert (summary.done, summary.existing, summary.exit_code) == (3, 0, 1)
     assert [path for path, _ in summary.skipped] == ["B/bad_poses.npz"]
-    assert (
-        "NaN" in summary.skipped[0][1] and str(root / "in" / "B" / "bad_poses.npz") in summary.skipped[0][1]
-    )
+    assert "NaN" in summary.skipped[0][1] and str(root / "in" / "B" / "bad_poses.npz") in summary.skipped[0][1]
     for rel, *_ in GOOD:
         np.testing.assert_array_equal(_joints(out / rel), _joints(reference / rel))
     again = process_tree(root / "in", out, options, ray_address="local", progress=False)

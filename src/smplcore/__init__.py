@@ -15,13 +15,39 @@ from smplcore.numpy_model import BodyModel, BodyOutput
 __version__ = "0.1.0"
 
 _TORCH_NAMES = {
-    "create", "build_layer", "SMPL", "SMPLH", "SMPLX", "MANO", "FLAME", "SMPLLayer", "SMPLHLayer", "SMPLXLayer",
-    "MANOLayer", "FLAMELayer", "OpenModel", "ModelOutput", "SMPLOutput", "SMPLHOutput", "SMPLXOutput",
-    "MANOOutput", "FLAMEOutput",
+    "create",
+    "build_layer",
+    "SMPL",
+    "SMPLH",
+    "SMPLX",
+    "MANO",
+    "FLAME",
+    "SMPLLayer",
+    "SMPLHLayer",
+    "SMPLXLayer",
+    "MANOLayer",
+    "FLAMELayer",
+    "OpenModel",
+    "ModelOutput",
+    "SMPLOutput",
+    "SMPLHOutput",
+    "SMPLXOutput",
+    "MANOOutput",
+    "FLAMEOutput",
 }
 
-__all__ = ["BodyModel", "BodyOutput", "ModelData", "ModelFileError", "ShapeError", "convert", "install_as_smplx",
-           "load_model", "save_npz", *sorted(_TORCH_NAMES)]
+__all__ = [
+    "BodyModel",
+    "BodyOutput",
+    "ModelData",
+    "ModelFileError",
+    "ShapeError",
+    "convert",
+    "install_as_smplx",
+    "load_model",
+    "save_npz",
+    *sorted(_TORCH_NAMES),
+]
 
 
 _LAZY_SUBMODULES = {"body_models", "lbs", "utils", "vertex_ids", "joint_names", "torch", "motion", "export", "render"}

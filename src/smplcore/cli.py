@@ -24,9 +24,17 @@ def _parse_floats(text: str) -> list[float]:
 def _cmd_demo(args: argparse.Namespace) -> int:
     from smplcore.demo import run_demo
 
-    result = run_demo(args.out, poses=args.poses, pose_file=args.pose, betas=args.betas, model_path=args.model_path,
-                      model_type=args.model_type, gender=args.gender, mesh_format=args.format,
-                      render=not args.no_render)
+    result = run_demo(
+        args.out,
+        poses=args.poses,
+        pose_file=args.pose,
+        betas=args.betas,
+        model_path=args.model_path,
+        model_type=args.model_type,
+        gender=args.gender,
+        mesh_format=args.format,
+        render=not args.no_render,
+    )
     print(f"mesh:  {result.mesh_path}")
     if result.image_path is not None:
         print(f"image: {result.image_path}")
@@ -47,8 +55,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     demo = sub.add_parser("demo", help="pose a body model and write a mesh and a rendered PNG")
     demo.add_argument("--out", type=Path, default=Path("smplcore-demo"), help="output folder (default: %(default)s)")
-    demo.add_argument("--poses", nargs="+", default=None,
-                      help="named poses: t-pose a-pose walk wave squat (default: a-pose walk wave squat)")
+    demo.add_argument(
+        "--poses",
+        nargs="+",
+        default=None,
+        help="named poses: t-pose a-pose walk wave squat (default: a-pose walk wave squat)",
+    )
     demo.add_argument("--pose", type=Path, default=None, help="file of body poses (.npy/.npz/.txt; 69 or 72 values)")
     demo.add_argument("--betas", type=_parse_floats, default=None, help="shape coefficients, e.g. '1.5,-0.5'")
     demo.add_argument("--model-path", default=None, help="your model file or folder (default: the open model)")

@@ -19,18 +19,32 @@ NAMED_POSES: dict[str, dict[str, tuple[float, float, float]]] = {
     "t-pose": {},
     "a-pose": {"left_shoulder": (0.0, 0.0, -0.9), "right_shoulder": (0.0, 0.0, 0.9)},
     "walk": {
-        "left_hip": (-0.45, 0.0, 0.0), "right_hip": (0.35, 0.0, 0.0), "right_knee": (0.6, 0.0, 0.0),
-        "left_knee": (0.15, 0.0, 0.0), "left_shoulder": (0.0, 0.0, -1.2), "right_shoulder": (0.0, 0.0, 1.2),
-        "left_elbow": (0.0, -0.3, 0.0), "right_elbow": (0.0, 0.3, 0.0),
+        "left_hip": (-0.45, 0.0, 0.0),
+        "right_hip": (0.35, 0.0, 0.0),
+        "right_knee": (0.6, 0.0, 0.0),
+        "left_knee": (0.15, 0.0, 0.0),
+        "left_shoulder": (0.0, 0.0, -1.2),
+        "right_shoulder": (0.0, 0.0, 1.2),
+        "left_elbow": (0.0, -0.3, 0.0),
+        "right_elbow": (0.0, 0.3, 0.0),
     },
     "wave": {
-        "left_shoulder": (0.0, 0.0, -1.25), "right_shoulder": (0.0, 0.0, -0.35),
-        "right_elbow": (0.0, 0.0, -1.4), "spine2": (0.0, 0.0, 0.08), "head": (0.0, 0.25, 0.0),
+        "left_shoulder": (0.0, 0.0, -1.25),
+        "right_shoulder": (0.0, 0.0, -0.35),
+        "right_elbow": (0.0, 0.0, -1.4),
+        "spine2": (0.0, 0.0, 0.08),
+        "head": (0.0, 0.25, 0.0),
     },
     "squat": {
-        "left_hip": (-1.4, 0.0, 0.15), "right_hip": (-1.4, 0.0, -0.15), "left_knee": (1.9, 0.0, 0.0),
-        "right_knee": (1.9, 0.0, 0.0), "left_ankle": (-0.4, 0.0, 0.0), "right_ankle": (-0.4, 0.0, 0.0),
-        "spine1": (0.35, 0.0, 0.0), "left_shoulder": (0.0, -1.1, -0.2), "right_shoulder": (0.0, 1.1, 0.2),
+        "left_hip": (-1.4, 0.0, 0.15),
+        "right_hip": (-1.4, 0.0, -0.15),
+        "left_knee": (1.9, 0.0, 0.0),
+        "right_knee": (1.9, 0.0, 0.0),
+        "left_ankle": (-0.4, 0.0, 0.0),
+        "right_ankle": (-0.4, 0.0, 0.0),
+        "spine1": (0.35, 0.0, 0.0),
+        "left_shoulder": (0.0, -1.1, -0.2),
+        "right_shoulder": (0.0, 1.1, 0.2),
     },
 }
 DEFAULT_POSES = ("a-pose", "walk", "wave", "squat")
@@ -76,10 +90,20 @@ class DemoResult:
     faces: np.ndarray
 
 
-def run_demo(out_dir: str | Path = "smplcore-demo", *, poses: list[str] | None = None,
-             pose_file: str | Path | None = None, betas: list[float] | np.ndarray | None = None,
-             model_path: str | Path | None = None, model_type: str | None = None, gender: str = "neutral",
-             mesh_format: str = "obj", render: bool = True, width: int = 1200, height: int = 500) -> DemoResult:
+def run_demo(
+    out_dir: str | Path = "smplcore-demo",
+    *,
+    poses: list[str] | None = None,
+    pose_file: str | Path | None = None,
+    betas: list[float] | np.ndarray | None = None,
+    model_path: str | Path | None = None,
+    model_type: str | None = None,
+    gender: str = "neutral",
+    mesh_format: str = "obj",
+    render: bool = True,
+    width: int = 1200,
+    height: int = 500,
+) -> DemoResult:
     """Pose the model and write ``body.{obj,ply}`` (first pose) and ``body.png`` (all poses).
 
     Parameters
@@ -125,10 +149,17 @@ def run_demo(out_dir: str | Path = "smplcore-demo", *, poses: list[str] | None =
     if render:
         from smplcore.render import render_to_png
 
-        image_path = render_to_png(_spread_on_floor(out.vertices), model.faces, out_dir / "body.png",
-                                   width=width, height=height, camera="three_quarter")
-    return DemoResult(Path(mesh_path), None if image_path is None else Path(image_path), out.vertices,
-                      out.joints, model.faces)
+        image_path = render_to_png(
+            _spread_on_floor(out.vertices),
+            model.faces,
+            out_dir / "body.png",
+            width=width,
+            height=height,
+            camera="three_quarter",
+        )
+    return DemoResult(
+        Path(mesh_path), None if image_path is None else Path(image_path), out.vertices, out.joints, model.faces
+    )
 
 
 def _demo_betas(betas: Any, count: int, num_betas: int) -> np.ndarray:

@@ -14,8 +14,17 @@ from smplcore.engine.landmarks import barycentric_points, contour_rows
 from smplcore.engine.rotations import pose_features, rodrigues, y_angle
 from smplcore.engine.skeleton import KinematicTree, skin, skinning_transforms, world_transforms
 
-__all__ = ["lbs", "blend_shapes", "vertices2joints", "batch_rodrigues", "batch_rigid_transform", "transform_mat",
-           "vertices2landmarks", "find_dynamic_lmk_idx_and_bcoords", "rot_mat_to_euler"]
+__all__ = [
+    "lbs",
+    "blend_shapes",
+    "vertices2joints",
+    "batch_rodrigues",
+    "batch_rigid_transform",
+    "transform_mat",
+    "vertices2landmarks",
+    "find_dynamic_lmk_idx_and_bcoords",
+    "rot_mat_to_euler",
+]
 
 
 def _parents_list(parents: Any) -> list[int]:
@@ -61,8 +70,17 @@ def batch_rigid_transform(rot_mats: Any, joints: Any, parents: Any, dtype: Any =
     return world_pos, transform_mat(rel[..., :3], rel[..., 3:])
 
 
-def lbs(betas: Any, pose: Any, v_template: Any, shapedirs: Any, posedirs: Any, J_regressor: Any, parents: Any,
-        lbs_weights: Any, pose2rot: bool = True) -> tuple[Any, Any]:
+def lbs(
+    betas: Any,
+    pose: Any,
+    v_template: Any,
+    shapedirs: Any,
+    posedirs: Any,
+    J_regressor: Any,
+    parents: Any,
+    lbs_weights: Any,
+    pose2rot: bool = True,
+) -> tuple[Any, Any]:
     """smplx's ``lbs``: (B, V, 3) vertices and (B, J, 3) joints.
 
     ``pose`` is (B, 3 J) axis-angle, or rotation matrices (B, J, 3, 3) with ``pose2rot=False``;
@@ -89,9 +107,14 @@ def rot_mat_to_euler(rot_mats: Any) -> Any:
     return y_angle(rot_mats)
 
 
-def find_dynamic_lmk_idx_and_bcoords(vertices: Any, pose: Any, dynamic_lmk_faces_idx: Any,
-                                     dynamic_lmk_b_coords: Any, neck_kin_chain: Sequence[int] | Any,
-                                     pose2rot: bool = True) -> tuple[Any, Any]:
+def find_dynamic_lmk_idx_and_bcoords(
+    vertices: Any,
+    pose: Any,
+    dynamic_lmk_faces_idx: Any,
+    dynamic_lmk_b_coords: Any,
+    neck_kin_chain: Sequence[int] | Any,
+    pose2rot: bool = True,
+) -> tuple[Any, Any]:
     """Faces (B, L) and barycentrics (B, L, 3) of the dynamic contour for the pose's head turn."""
     batch = vertices.shape[0]
     chain = [int(j) for j in (neck_kin_chain.tolist() if hasattr(neck_kin_chain, "tolist") else neck_kin_chain)]
@@ -102,6 +125,3 @@ def find_dynamic_lmk_idx_and_bcoords(vertices: Any, pose: Any, dynamic_lmk_faces
         rot_mats = pose.reshape(batch, -1, 3, 3)
     rows = contour_rows(rot_mats, chain)
     return dynamic_lmk_faces_idx[rows], dynamic_lmk_b_coords[rows]
-
-
-

@@ -51,7 +51,6 @@ def check_faces(faces: Any, num_vertices: int) -> np.ndarray:
     lo, hi = int(arr.min()), int(arr.max())
     if lo < 0 or hi >= num_vertices:
         raise ValueError(
-            f"faces: indices must be in [0, {num_vertices - 1}] for {num_vertices} vertices, "
-            f"got values in [{lo}, {hi}]"
+            f"faces: indices must be in [0, {num_vertices - 1}] for {num_vertices} vertices, got values in [{lo}, {hi}]"
         )
     return arr.astype(np.int64, copy=False)

@@ -90,21 +90,39 @@ class ModelSetup:
 
     def __post_init__(self) -> None:
         if self.keypoints is None:
-            self.keypoints = Keypoints.build(self.data, self.extra_joint_ids, self.spec.landmarks,
-                                             self.use_face_contour)
+            self.keypoints = Keypoints.build(
+                self.data, self.extra_joint_ids, self.spec.landmarks, self.use_face_contour
+            )
 
     @classmethod
-    def build(cls, data: ModelData, *, num_betas: int = 10, num_expression_coeffs: int = 10,
-              use_pca: bool = True, num_pca_comps: int = 6, flat_hand_mean: bool = False,
-              use_face_contour: bool = False, use_hands: bool = True, use_feet_keypoints: bool = True,
-              vertex_ids: dict | None = None, age: str = "adult", kid_template_path: str | Path | None = None,
-              v_template: np.ndarray | None = None, owner: str = "") -> ModelSetup:
+    def build(
+        cls,
+        data: ModelData,
+        *,
+        num_betas: int = 10,
+        num_expression_coeffs: int = 10,
+        use_pca: bool = True,
+        num_pca_comps: int = 6,
+        flat_hand_mean: bool = False,
+        use_face_contour: bool = False,
+        use_hands: bool = True,
+        use_feet_keypoints: bool = True,
+        vertex_ids: dict | None = None,
+        age: str = "adult",
+        kid_template_path: str | Path | None = None,
+        v_template: np.ndarray | None = None,
+        owner: str = "",
+    ) -> ModelSetup:
         spec = get_spec(data.model_type)
         owner = owner or spec.display_name
         _check_count("num_betas", num_betas)
         if num_betas > data.num_betas:
-            warn_once(owner, f"{owner}: num_betas={num_betas} asked, but {data.source} holds {data.num_betas} "
-                             f"shape components; using {data.num_betas}", key=f"betas{num_betas}-{data.source}")
+            warn_once(
+                owner,
+                f"{owner}: num_betas={num_betas} asked, but {data.source} holds {data.num_betas} "
+                f"shape components; using {data.num_betas}",
+                key=f"betas{num_betas}-{data.source}",
+            )
             num_betas = data.num_betas
         shapedirs = np.asarray(data.shapedirs[:, :, :num_betas])
         if v_template is not None:
@@ -122,8 +140,12 @@ class ModelSetup:
             _check_count("num_expression_coeffs", num_expression_coeffs)
             held = data.num_expression_coeffs
             if num_expression_coeffs > held:
-                warn_once(owner, f"{owner}: num_expression_coeffs={num_expression_coeffs} asked, but {data.source} "
-                                 f"holds {held}; using {held}", key=f"expr{num_expression_coeffs}-{data.source}")
+                warn_once(
+                    owner,
+                    f"{owner}: num_expression_coeffs={num_expression_coeffs} asked, but {data.source} "
+                    f"holds {held}; using {held}",
+                    key=f"expr{num_expression_coeffs}-{data.source}",
+                )
                 num_expression_coeffs = held
             exprdirs = np.asarray(data.exprdirs[:, :, :num_expression_coeffs])
         else:
@@ -138,15 +160,21 @@ class ModelSetup:
             mean = getattr(data, f"hands_mean_{side}")
             if use_pca:
                 if comps is None:
-                    raise ModelFileError(data.source, f"use_pca=True needs the {side} hand's PCA components, which "
-                                                      "this file does not have; pass use_pca=False",
-                                         key="hands_components")
+                    raise ModelFileError(
+                        data.source,
+                        f"use_pca=True needs the {side} hand's PCA components, which "
+                        "this file does not have; pass use_pca=False",
+                        key="hands_components",
+                    )
                 if not 1 <= num_pca_comps <= comps.shape[0]:
                     raise ValueError(f"num_pca_comps: expected 1..{comps.shape[0]}, got {num_pca_comps}")
                 hand_components[block.name] = np.asarray(comps[:num_pca_comps])
             if mean is None and not flat_hand_mean:
-                warn_once(owner, f"{owner}: {data.source} has no mean hand pose; using a flat hand mean",
-                          key=f"nomean-{data.source}")
+                warn_once(
+                    owner,
+                    f"{owner}: {data.source} has no mean hand pose; using a flat hand mean",
+                    key=f"nomean-{data.source}",
+                )
             hand_means[block.name] = np.zeros(45) if (flat_hand_mean or mean is None) else np.asarray(mean)
         offsets = spec.block_offsets()
         pose_mean = np.zeros((spec.num_joints, 3))
@@ -156,32 +184,55 @@ class ModelSetup:
 
         extra_names, extra_ids = [], []
         if spec.extra_joints:
-            ids = vertex_ids or spec.vertex_ids or {
-                names.EXTRA_JOINT_KEYS[n]: i for n, i in zip(data.extra_joint_names, data.extra_joint_vertex_ids)}
+            ids = (
+                vertex_ids
+                or spec.vertex_ids
+                or {names.EXTRA_JOINT_KEYS[n]: i for n, i in zip(data.extra_joint_names, data.extra_joint_vertex_ids)}
+            )
             if ids:
                 extra_names, extra_ids = extra_joint_vertex_ids(ids, use_hands, use_feet_keypoints)
 
         if use_face_contour and (not spec.landmarks or data.dynamic_lmk_faces_idx is None):
-            raise ModelFileError(data.source, f"use_face_contour=True needs the dynamic face contour embedding, "
-                                              f"which this {spec.display_name} model does not have",
-                                 key="dynamic_lmk_faces_idx")
+            raise ModelFileError(
+                data.source,
+                f"use_face_contour=True needs the dynamic face contour embedding, "
+                f"which this {spec.display_name} model does not have",
+                key="dynamic_lmk_faces_idx",
+            )
         if spec.landmarks and data.lmk_faces_idx is None:
             where = "flame_static_embedding.pkl next to the model file" if spec.model_type == "flame" else "the file"
-            raise ModelFileError(data.source, f"{spec.display_name} needs static landmark embeddings ({where})",
-                                 key="lmk_faces_idx")
+            raise ModelFileError(
+                data.source, f"{spec.display_name} needs static landmark embeddings ({where})", key="lmk_faces_idx"
+            )
         neck_chain = []
         if use_face_contour:
             neck_chain = engine.KinematicTree.from_parents(data.parents).chain_to_root(spec.neck_index)
-        return cls(spec, data, num_betas, num_expression_coeffs, shapedirs, exprdirs, use_pca, num_pca_comps,
-                   flat_hand_mean, hand_components, hand_means, pose_mean.reshape(-1), extra_ids, extra_names,
-                   use_face_contour, neck_chain)
+        return cls(
+            spec,
+            data,
+            num_betas,
+            num_expression_coeffs,
+            shapedirs,
+            exprdirs,
+            use_pca,
+            num_pca_comps,
+            flat_hand_mean,
+            hand_components,
+            hand_means,
+            pose_mean.reshape(-1),
+            extra_ids,
+            extra_names,
+            use_face_contour,
+            neck_chain,
+        )
 
     def body_arrays(self, convert=np.asarray) -> engine.BodyArrays:
         """The engine's arrays (shape and expression bases concatenated once, here)."""
         d = self.data
         dirs = np.concatenate([self.shapedirs, self.exprdirs], axis=-1)
-        return engine.BodyArrays.build(d.v_template, dirs, d.J_regressor, d.posedirs, d.weights, d.parents,
-                                       convert=convert)
+        return engine.BodyArrays.build(
+            d.v_template, dirs, d.J_regressor, d.posedirs, d.weights, d.parents, convert=convert
+        )
 
     @property
     def output_joint_names(self) -> list[str]:
@@ -231,8 +282,10 @@ def batch_of(params: dict[str, Any]) -> int:
     batch = max(sizes.values(), default=1)
     for name, size in sizes.items():
         if size not in (1, batch):
-            raise ShapeError(f"{name}: batch size {size} does not match the batch size {batch} of the other "
-                             f"parameters (sizes: {sizes}); give 1 or {batch}")
+            raise ShapeError(
+                f"{name}: batch size {size} does not match the batch size {batch} of the other "
+                f"parameters (sizes: {sizes}); give 1 or {batch}"
+            )
     return batch
 
 
@@ -269,8 +322,15 @@ def _rotmat_rows(name: str, value: Any, batch: int, joints: int) -> Any:
     return value
 
 
-def evaluate(setup: ModelSetup, arrays: engine.BodyArrays, params: dict[str, Any], *,
-             rotation_matrices: bool = False, vertices: bool = True, like: Any = None) -> dict[str, Any]:
+def evaluate(
+    setup: ModelSetup,
+    arrays: engine.BodyArrays,
+    params: dict[str, Any],
+    *,
+    rotation_matrices: bool = False,
+    vertices: bool = True,
+    like: Any = None,
+) -> dict[str, Any]:
     """Run the model.
 
     Parameters
@@ -392,17 +452,29 @@ class Keypoints:
     def build(cls, data: ModelData, extra_ids: list[int], landmarks: bool, contour: bool) -> Keypoints:
         extra = np.asarray(extra_ids, dtype=np.int64)
         corners = data.faces[data.lmk_faces_idx] if landmarks else np.zeros((0, 3), np.int64)
-        contour_corners = (data.faces[data.dynamic_lmk_faces_idx] if contour
-                           else np.zeros((79, 0, 3), np.int64))
-        ids, inverse = np.unique(np.concatenate([extra, corners.ravel(), contour_corners.ravel()]),
-                                 return_inverse=True)
+        contour_corners = data.faces[data.dynamic_lmk_faces_idx] if contour else np.zeros((79, 0, 3), np.int64)
+        ids, inverse = np.unique(np.concatenate([extra, corners.ravel(), contour_corners.ravel()]), return_inverse=True)
         n1, n2 = extra.size, extra.size + corners.size
-        return cls(ids, extra, corners, contour_corners, inverse[:n1], inverse[n1:n2].reshape(corners.shape),
-                   inverse[n2:].reshape(contour_corners.shape))
+        return cls(
+            ids,
+            extra,
+            corners,
+            contour_corners,
+            inverse[:n1],
+            inverse[n1:n2].reshape(corners.shape),
+            inverse[n2:].reshape(contour_corners.shape),
+        )
 
 
-def _keypoints(setup: ModelSetup, arrays: engine.BodyArrays, coeffs: Any, rotmats: Any, transforms: Any,
-               verts: Any | None, transl: Any | None) -> list[Any]:
+def _keypoints(
+    setup: ModelSetup,
+    arrays: engine.BodyArrays,
+    coeffs: Any,
+    rotmats: Any,
+    transforms: Any,
+    verts: Any | None,
+    transl: Any | None,
+) -> list[Any]:
     """Extra vertex joints, static landmarks and the dynamic contour, in smplx's order (untranslated)."""
     kp, d = setup.keypoints, setup.data
     if verts is None or records_gradients(verts):
@@ -430,7 +502,8 @@ def _keypoints(setup: ModelSetup, arrays: engine.BodyArrays, coeffs: Any, rotmat
     return out
 
 
-def _pose_vertex_subset(setup: ModelSetup, coeffs: Any, rotmats: Any, transforms: Any,
-                        arrays: engine.BodyArrays) -> Any:
+def _pose_vertex_subset(
+    setup: ModelSetup, coeffs: Any, rotmats: Any, transforms: Any, arrays: engine.BodyArrays
+) -> Any:
     """(B, n, 3) posed keypoint vertices only (``setup.keypoints.ids``)."""
     return engine.posed_vertex_subset(coeffs, rotmats, transforms, arrays, setup.keypoints.ids)

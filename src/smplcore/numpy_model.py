@@ -54,14 +54,34 @@ class BodyModel:
     (2, 45)
     """
 
-    def __init__(self, model_path: str | Path | None = None, model_type: str | None = None, *,
-                 gender: str = "neutral", ext: str = "pkl", dtype: Any = np.float32, is_rhand: bool = True,
-                 data: ModelData | None = None, **options: Any) -> None:
+    def __init__(
+        self,
+        model_path: str | Path | None = None,
+        model_type: str | None = None,
+        *,
+        gender: str = "neutral",
+        ext: str = "pkl",
+        dtype: Any = np.float32,
+        is_rhand: bool = True,
+        data: ModelData | None = None,
+        **options: Any,
+    ) -> None:
         if data is None:
             data = read_model(model_path, model_type, gender=gender, ext=ext, is_rhand=is_rhand)
-        known = {"num_betas", "num_expression_coeffs", "use_pca", "num_pca_comps", "flat_hand_mean",
-                 "use_face_contour", "use_hands", "use_feet_keypoints", "vertex_ids", "age", "kid_template_path",
-                 "v_template"}
+        known = {
+            "num_betas",
+            "num_expression_coeffs",
+            "use_pca",
+            "num_pca_comps",
+            "flat_hand_mean",
+            "use_face_contour",
+            "use_hands",
+            "use_feet_keypoints",
+            "vertex_ids",
+            "age",
+            "kid_template_path",
+            "v_template",
+        }
         for name in sorted(set(options) - known):
             warn_once("BodyModel", f"BodyModel: ignoring unknown keyword argument {name!r}", key=name)
         self.dtype = np.dtype(dtype)
@@ -117,8 +137,10 @@ class BodyModel:
         from smplcore.model_setup import _rows
 
         coeffs = []
-        for name, value, width in (("betas", betas, self.num_betas),
-                                   ("expression", expression, self.num_expression_coeffs)):
+        for name, value, width in (
+            ("betas", betas, self.num_betas),
+            ("expression", expression, self.num_expression_coeffs),
+        ):
             if name == "expression" and not self.setup.spec.has_expression:
                 continue
             value = np.zeros((1, width), self.dtype) if value is None else np.asarray(value, self.dtype)
@@ -141,12 +163,18 @@ class BodyModel:
         allowed = set(self.pose_blocks) | {"betas", "expression", "transl"}
         for name in sorted(set(params) - allowed):
             warn_once("BodyModel.__call__", f"BodyModel: ignoring unknown keyword argument {name!r}", key=name)
-        arrays = {k: None if v is None else np.asarray(v, dtype=self.dtype) for k, v in params.items()
-                  if k in allowed}
+        arrays = {k: None if v is None else np.asarray(v, dtype=self.dtype) for k, v in params.items() if k in allowed}
         out = evaluate(self.setup, self.arrays, arrays, rotation_matrices=not pose2rot, vertices=return_verts)
         verts, joints, transl = out["vertices"], out["joints"], out["transl"]
         if transl is not None:  # the engine translated the vertices already
             joints = joints + transl[:, None]
-        return BodyOutput(vertices=verts, joints=joints, full_pose=out["full_pose"], rotmats=out["rotmats"],
-                          betas=out["betas"], expression=out["expression"], transl=transl,
-                          pose={name: out[name] for name in self.pose_blocks})
+        return BodyOutput(
+            vertices=verts,
+            joints=joints,
+            full_pose=out["full_pose"],
+            rotmats=out["rotmats"],
+            betas=out["betas"],
+            expression=out["expression"],
+            transl=transl,
+            pose={name: out[name] for name in self.pose_blocks},
+        )

@@ -9,8 +9,21 @@ import numpy as np
 from smplcore.lbs import rot_mat_to_euler
 from smplcore.torch.outputs import FLAMEOutput, MANOOutput, ModelOutput, SMPLHOutput, SMPLOutput, SMPLXOutput
 
-__all__ = ["ModelOutput", "SMPLOutput", "SMPLHOutput", "SMPLXOutput", "MANOOutput", "FLAMEOutput", "Struct",
-           "to_tensor", "to_np", "find_joint_kin_chain", "rot_mat_to_euler", "Tensor", "Array"]
+__all__ = [
+    "ModelOutput",
+    "SMPLOutput",
+    "SMPLHOutput",
+    "SMPLXOutput",
+    "MANOOutput",
+    "FLAMEOutput",
+    "Struct",
+    "to_tensor",
+    "to_np",
+    "find_joint_kin_chain",
+    "rot_mat_to_euler",
+    "Tensor",
+    "Array",
+]
 
 Tensor = Any
 Array = np.ndarray

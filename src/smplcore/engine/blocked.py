@@ -77,8 +77,11 @@ def vertex_blocks(weights_t: Any, size: int, blend_basis: Any = None) -> tuple[V
         if pack_blend:
             cols = index(vertex_columns(np.arange(start, stop), num_verts), blend_basis)
             packed_blend = gemm.pack(blend_basis[:, cols])
-        blocks.append(VertexBlock(start, stop, idx, block_weights, gemm.pack(block_weights),
-                                  gemm.pack(block_weights.T), packed_blend))
+        blocks.append(
+            VertexBlock(
+                start, stop, idx, block_weights, gemm.pack(block_weights), gemm.pack(block_weights.T), packed_blend
+            )
+        )
     return tuple(blocks)
 
 
@@ -122,13 +125,12 @@ def posed_vertices(feats: Any, transforms: Any, blend_basis: Any, blocks: tuple[
         else:
             rest = rest_buf[: 3 * batch * n].reshape(3, batch, n)
             for c in range(3):
-                _matmul(feats, basis[:, c * num_verts + start: c * num_verts + stop], rest[c])
-        joint_rows = (per_joint_rows(transforms, block.joints) if per_joint is None
-                      else block_rows(per_joint, block)).T
+                _matmul(feats, basis[:, c * num_verts + start : c * num_verts + stop], rest[c])
+        joint_rows = (per_joint_rows(transforms, block.joints) if per_joint is None else block_rows(per_joint, block)).T
         for b0 in range(0, batch, sub):
             b1 = min(batch, b0 + sub)
             m = b1 - b0
-            g = blended_transforms(joint_rows[12 * b0: 12 * b1], block, blend_buf, m * n).reshape(m, 12, n)
+            g = blended_transforms(joint_rows[12 * b0 : 12 * b1], block, blend_buf, m * n).reshape(m, 12, n)
             tmp = tmp_buf[: m * n].reshape(m, n)
             scratch = None if scratch_buf is None else scratch_buf[: m * n].reshape(m, n)
             apply_blended(g, rest[:, b0:b1], out[b0:b1, start:stop], tmp, scratch)

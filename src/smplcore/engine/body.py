@@ -56,9 +56,16 @@ class BodyArrays:
     _derived: dict = field(default_factory=dict, repr=False)
 
     @classmethod
-    def build(cls, v_template: np.ndarray, shapedirs: np.ndarray, J_regressor: np.ndarray,
-              posedirs: np.ndarray | None, weights: np.ndarray, parents: np.ndarray,
-              convert: Callable[[np.ndarray], Any] = np.asarray) -> BodyArrays:
+    def build(
+        cls,
+        v_template: np.ndarray,
+        shapedirs: np.ndarray,
+        J_regressor: np.ndarray,
+        posedirs: np.ndarray | None,
+        weights: np.ndarray,
+        parents: np.ndarray,
+        convert: Callable[[np.ndarray], Any] = np.asarray,
+    ) -> BodyArrays:
         """Arrange NumPy model arrays for evaluation; ``convert`` moves each to the target namespace.
 
         ``shapedirs`` is (V, 3, K) (shape and expression columns already concatenated), ``posedirs``
@@ -107,11 +114,13 @@ class BodyArrays:
 
     def vertex_subset(self, ids: np.ndarray) -> tuple[Any, Any, tuple[blocked.VertexBlock, ...]]:
         """Basis columns, weights and one vertex block for the vertices ``ids`` only (cached)."""
+
         def make():
             cols = index(vertex_columns(ids, self.weights_t.shape[1]), self.weights_t)
             rows = index(ids, self.weights_t)
             basis, weights_t = self.blend_basis[:, cols], self.weights_t[:, rows]
             return basis, weights_t, blocked.vertex_blocks(weights_t, max(len(ids), 1), basis)
+
         return self.derived(("subset", np.asarray(ids).tobytes()), make)
 
     def packed_blend(self) -> tuple[Any, Any] | None:
@@ -180,8 +189,9 @@ def rest_joints(coeffs: Any, arrays: BodyArrays) -> Any:
     return joints if inverse is None else joints[:, inverse]
 
 
-def forward(coeffs: Any, rotmats: Any, arrays: BodyArrays, *, vertices: bool = True, translation: Any = None
-            ) -> tuple[Any | None, Any, Any]:
+def forward(
+    coeffs: Any, rotmats: Any, arrays: BodyArrays, *, vertices: bool = True, translation: Any = None
+) -> tuple[Any | None, Any, Any]:
     """Posed body.
 
     Parameters
@@ -207,8 +217,9 @@ def forward(coeffs: Any, rotmats: Any, arrays: BodyArrays, *, vertices: bool = T
     if not vertices:
         return None, posed_joints, transforms
     feats = blend_features(coeffs, rotmats, arrays)
-    verts = _skin_from_basis(feats, transforms, arrays.blend_basis, arrays.weights_t, arrays.vertex_blocks,
-                             translation, arrays.packed_blend)
+    verts = _skin_from_basis(
+        feats, transforms, arrays.blend_basis, arrays.weights_t, arrays.vertex_blocks, translation, arrays.packed_blend
+    )
     return verts, posed_joints, transforms
 
 
@@ -225,8 +236,15 @@ _GRAD_BLOCK = 1024
 _GRAD_FEW_BODIES = 16
 
 
-def _skin_from_basis(feats: Any, transforms: Any, basis: Any, weights_t: Any, blocks: Callable[[int], Any],
-                     translation: Any, packed_blend: Callable[[], Any] | None = None) -> Any:
+def _skin_from_basis(
+    feats: Any,
+    transforms: Any,
+    basis: Any,
+    weights_t: Any,
+    blocks: Callable[[int], Any],
+    translation: Any,
+    packed_blend: Callable[[], Any] | None = None,
+) -> Any:
     """Blend ``feats @ basis`` and skin it: vertex-blocked without autograd; with it, one autograd
     node for the skinning (torch) unless the weights themselves are being trained. ``blocks(size)``
     gives the vertex blocks of about ``size`` vertices; ``packed_blend()`` the basis packed for

@@ -38,8 +38,13 @@ def available(like: Any) -> bool:
     if not is_torch(like) or os.environ.get(_ENV, "1") == "0":
         return False
     torch = sys.modules["torch"]
-    return (like.device.type == "cpu" and like.dtype == torch.float32 and torch.backends.mkldnn.is_available()
-            and hasattr(torch.ops.mkldnn, "_linear_pointwise") and hasattr(torch.ops.mkldnn, "_reorder_linear_weight"))
+    return (
+        like.device.type == "cpu"
+        and like.dtype == torch.float32
+        and torch.backends.mkldnn.is_available()
+        and hasattr(torch.ops.mkldnn, "_linear_pointwise")
+        and hasattr(torch.ops.mkldnn, "_reorder_linear_weight")
+    )
 
 
 def pack(matrix: Any) -> Any | None:

@@ -38,9 +38,15 @@ def rodrigues(rotvec: Any) -> Any:
     ax, ay, az = sin_c * x, sin_c * y, sin_c * z
     bxy, bxz, byz = one_minus_cos_c * x * y, one_minus_cos_c * x * z, one_minus_cos_c * y * z
     rows = (
-        cos_c + one_minus_cos_c * x * x, bxy - az, bxz + ay,
-        bxy + az, cos_c + one_minus_cos_c * y * y, byz - ax,
-        bxz - ay, byz + ax, cos_c + one_minus_cos_c * z * z,
+        cos_c + one_minus_cos_c * x * x,
+        bxy - az,
+        bxz + ay,
+        bxy + az,
+        cos_c + one_minus_cos_c * y * y,
+        byz - ax,
+        bxz - ay,
+        byz + ax,
+        cos_c + one_minus_cos_c * z * z,
     )
     return xp.stack(rows, axis=-1).reshape(*rotvec.shape[:-1], 3, 3)
 

@@ -183,9 +183,16 @@ def skin(vertices: Any, transforms: Any, weights_t: Any, translation: Any = None
     out = []
     for start in range(0, batch, chunk):
         stop = min(start + chunk, batch)
-        t = (per_vertex[12 * start: 12 * stop] @ weights_t).reshape(stop - start, 12, num_verts)
+        t = (per_vertex[12 * start : 12 * stop] @ weights_t).reshape(stop - start, 12, num_verts)
         x, y, z = vertices[start:stop, 0], vertices[start:stop, 1], vertices[start:stop, 2]
-        out.append(xp.stack([t[:, 0] * x + t[:, 1] * y + t[:, 2] * z + t[:, 9],
-                             t[:, 3] * x + t[:, 4] * y + t[:, 5] * z + t[:, 10],
-                             t[:, 6] * x + t[:, 7] * y + t[:, 8] * z + t[:, 11]], axis=-1))
+        out.append(
+            xp.stack(
+                [
+                    t[:, 0] * x + t[:, 1] * y + t[:, 2] * z + t[:, 9],
+                    t[:, 3] * x + t[:, 4] * y + t[:, 5] * z + t[:, 10],
+                    t[:, 6] * x + t[:, 7] * y + t[:, 8] * z + t[:, 11],
+                ],
+                axis=-1,
+            )
+        )
     return out[0] if len(out) == 1 else xp.concat(out, axis=0)

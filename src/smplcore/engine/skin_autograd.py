@@ -47,7 +47,7 @@ class _Skin(torch.autograd.Function):
             for sl in _body_chunks(batch, n):
                 m = sl.stop - sl.start
                 chunk_store = None if store is None else store[offset:]
-                g = blended_transforms(rows[:, 12 * sl.start: 12 * sl.stop].T, block, chunk_store, m * n)
+                g = blended_transforms(rows[:, 12 * sl.start : 12 * sl.stop].T, block, chunk_store, m * n)
                 g, offset = g.view(m, 12, n), offset + 12 * m * n
                 tiles.append(g)
                 chunk_rest = rest[sl, :, cols].transpose(0, 1)  # (3, bodies, block)
@@ -87,7 +87,7 @@ class _Skin(torch.autograd.Function):
                         contribution = gemm.product(planes, block.packed_weights_t).T
                     else:
                         contribution = block.weights_t @ planes.T
-                    target = grad_per_joint[:, 12 * sl.start: 12 * sl.stop]
+                    target = grad_per_joint[:, 12 * sl.start : 12 * sl.stop]
                     if block.joints is None:
                         target += contribution
                     else:

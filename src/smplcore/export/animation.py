@@ -218,10 +218,7 @@ def load_input(path: str | Path) -> Any:
             raise ValueError(f"{path}: expected a JSON object of parameter arrays")
         if "poses" in raw:
             return _motion_from_arrays(raw, str(path))
-        return {
-            k: np.asarray(v, dtype=np.float64) if k not in ("gender", "model_type") else v
-            for k, v in raw.items()
-        }
+        return {k: np.asarray(v, dtype=np.float64) if k not in ("gender", "model_type") else v for k, v in raw.items()}
     if suffix == ".npz":
         with np.load(path, allow_pickle=False) as data:
             keys = set(data.files)
@@ -242,9 +239,7 @@ def _motion_from_arrays(arrays: Mapping[str, Any], source: str = "<memory>", fps
         poses = poses[None]
     by_width = {v: k for k, v in POSE_WIDTH.items()}
     model_type = (
-        _text(arrays["surface_model_type"]).lower()
-        if "surface_model_type" in arrays
-        else by_width.get(poses.shape[1])
+        _text(arrays["surface_model_type"]).lower() if "surface_model_type" in arrays else by_width.get(poses.shape[1])
     )
     if model_type is None:
         raise ShapeError(
@@ -363,9 +358,7 @@ def prepare_animation(
             DEFAULT_FPS,
         )
     else:
-        raise TypeError(
-            f"source: expected a Motion, a path or a dict of parameter arrays, got {type(source).__name__}"
-        )
+        raise TypeError(f"source: expected a Motion, a path or a dict of parameter arrays, got {type(source).__name__}")
     if fps is not None:
         rate = float(fps)
     if not (np.isfinite(rate) and rate > 0):
@@ -416,9 +409,7 @@ def _from_motion(model: Any, motion: Any, notes: list[str], progress: Progress |
         raise ValueError(f"the {motion.model_type} motion shares no joints with the {model.model_type} model")
     params = motion.model_params(model.model_type, names)
     frames = motion.num_frames
-    full = np.concatenate(
-        [np.asarray(params[b], np.float64).reshape(frames, -1) for b in model.pose_blocks], axis=1
-    )
+    full = np.concatenate([np.asarray(params[b], np.float64).reshape(frames, -1) for b in model.pose_blocks], axis=1)
     full = full + np.asarray(model.setup.pose_mean, np.float64)  # zeros unless the hand mean is not flat
     rotations = np.empty((frames, len(names), 3, 3))
     for start in range(0, frames, _CHUNK):
@@ -459,9 +450,7 @@ def _from_params(model: Any, source: Mapping[str, Any], notes: list[str], progre
     if model.num_expression_coeffs:
         expr = params.pop("expression", None)
         if expr is not None:
-            expression = _fit_width(
-                "expression", expr.reshape(expr.shape[0], -1), model.num_expression_coeffs, notes
-            )
+            expression = _fit_width("expression", expr.reshape(expr.shape[0], -1), model.num_expression_coeffs, notes)
     else:
         params.pop("expression", None)
     frames = _frames_of({**params, **({} if expression is None else {"expression": expression})})
@@ -512,9 +501,7 @@ def top_k_weights(weights: np.ndarray, k: int = 4) -> tuple[np.ndarray, np.ndarr
 
 def _weight_matrix(joints: np.ndarray, values: np.ndarray, num_joints: int) -> np.ndarray:
     out = np.zeros((joints.shape[0], num_joints))
-    np.add.at(
-        out, (np.repeat(np.arange(joints.shape[0]), joints.shape[1]), joints.reshape(-1)), values.reshape(-1)
-    )
+    np.add.at(out, (np.repeat(np.arange(joints.shape[0]), joints.shape[1]), joints.reshape(-1)), values.reshape(-1))
     return out
 
 
@@ -550,9 +537,7 @@ def truncation_error(
     for start in range(0, anim.num_frames, _CHUNK):
         stop = min(start + _CHUNK, anim.num_frames)
         mats = anim.skinning_matrices(slice(start, stop))
-        diff = np.linalg.norm(
-            lbs(verts, mats, delta[affected]), axis=-1
-        )  # translations cancel: rows sum to 0
+        diff = np.linalg.norm(lbs(verts, mats, delta[affected]), axis=-1)  # translations cancel: rows sum to 0
         total += float(diff.sum())
         worst = max(worst, float(diff.max()))
         if progress is not None:

@@ -86,9 +86,7 @@ def _end_sites(anim: Animation) -> dict[int, np.ndarray]:
         if kids.size:
             continue
         parent = anim.parents[j]
-        bone = anim.rest_joints[j] - (
-            anim.rest_joints[parent] if parent >= 0 else anim.rest_joints[j] - [0, 0.1, 0]
-        )
+        bone = anim.rest_joints[j] - (anim.rest_joints[parent] if parent >= 0 else anim.rest_joints[j] - [0, 0.1, 0])
         length = float(np.linalg.norm(bone))
         direction = bone / length if length > 1e-9 else np.array([0.0, 1.0, 0.0])
         verts = anim.rest_vertices[dominant == j]
@@ -128,11 +126,7 @@ def save_bvh(
     path = Path(path)
     if path.suffix.lower() != ".bvh":
         raise ValueError(f"path: expected a .bvh file, got {str(path)!r}")
-    anim = (
-        source
-        if isinstance(source, Animation)
-        else prepare_animation(model, source, fps=fps, progress=progress)
-    )
+    anim = source if isinstance(source, Animation) else prepare_animation(model, source, fps=fps, progress=progress)
     if fps is not None and isinstance(source, Animation):
         anim = dataclasses.replace(anim, fps=float(fps))
     notes = list(anim.notes)

@@ -48,8 +48,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--model-type",
         default=None,
-        help="smpl, smplh, smplx, mano, flame or open "
-        "(default: open without --model-path, else from the file)",
+        help="smpl, smplh, smplx, mano, flame or open (default: open without --model-path, else from the file)",
     )
     parser.add_argument("--gender", default=None, help="model gender (default: the motion's, else neutral)")
     parser.add_argument(
@@ -144,9 +143,7 @@ def _build_model(args: argparse.Namespace, source: Any) -> Any:
     if is_motion:
         betas = np.asarray(source.betas).reshape(-1)
         gender = args.gender or source.gender or "neutral"
-        options.update(
-            use_pca=False, flat_hand_mean=True if args.flat_hand_mean is None else args.flat_hand_mean
-        )
+        options.update(use_pca=False, flat_hand_mean=True if args.flat_hand_mean is None else args.flat_hand_mean)
         if source.expression is not None:
             options["num_expression_coeffs"] = int(np.asarray(source.expression).shape[-1])
     else:
@@ -190,9 +187,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     suffix = out.suffix.lower()
     if suffix not in FORMATS:
-        raise ValueError(
-            f"-o/--output: unsupported suffix {out.suffix!r}; expected one of {', '.join(FORMATS)}"
-        )
+        raise ValueError(f"-o/--output: unsupported suffix {out.suffix!r}; expected one of {', '.join(FORMATS)}")
     source = load_input(args.input)
     frames = _frame_slice(args.frames)
     if frames is not None:
@@ -227,9 +222,7 @@ def run(args: argparse.Namespace) -> int:
                         progress=update,
                     )
                 else:
-                    report = save_bvh(
-                        out, model, anim, scale=args.bvh_scale, euler=args.euler, progress=update
-                    )
+                    report = save_bvh(out, model, anim, scale=args.bvh_scale, euler=args.euler, progress=update)
             finally:
                 if bar is not None:
                     bar.close()

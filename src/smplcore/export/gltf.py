@@ -182,11 +182,7 @@ def save_glb(
 
     if influences not in (4, 8):
         raise ValueError(f"influences: expected 4 or 8, got {influences!r}")
-    anim = (
-        source
-        if isinstance(source, Animation)
-        else prepare_animation(model, source, fps=fps, progress=progress)
-    )
+    anim = source if isinstance(source, Animation) else prepare_animation(model, source, fps=fps, progress=progress)
     if fps is not None and isinstance(source, Animation):
         anim = dataclasses.replace(anim, fps=float(fps))
     path = Path(path)
@@ -241,9 +237,7 @@ def save_glb(
         attributes[f"JOINTS_{s}"] = build.accessor(
             joints_idx[:, cols], joint_type, target=_ARRAY_BUFFER, name=f"joints_{s}"
         )
-        attributes[f"WEIGHTS_{s}"] = build.accessor(
-            w32[:, cols], _FLOAT, target=_ARRAY_BUFFER, name=f"weights_{s}"
-        )
+        attributes[f"WEIGHTS_{s}"] = build.accessor(w32[:, cols], _FLOAT, target=_ARRAY_BUFFER, name=f"weights_{s}")
     if vertex_colors is not None:
         from smplcore.export.mesh import _check_vertex_colors
 
@@ -328,9 +322,7 @@ def save_glb(
         name="inverse_bind_matrices",
     )
     gltf.skins.append(
-        pygltflib.Skin(
-            name="skeleton", joints=list(range(num_joints)), skeleton=0, inverseBindMatrices=ibm_accessor
-        )
+        pygltflib.Skin(name="skeleton", joints=list(range(num_joints)), skeleton=0, inverseBindMatrices=ibm_accessor)
     )
     gltf.nodes.append(pygltflib.Node(name="body", mesh=0, skin=0))
     gltf.scenes.append(pygltflib.Scene(name=anim.model_type, nodes=[0, mesh_node]))
@@ -344,9 +336,7 @@ def save_glb(
     samplers, channels = [], []
 
     def add_channel(node: int, path_name: str, output: int) -> None:
-        samplers.append(
-            pygltflib.AnimationSampler(input=time_accessor, output=output, interpolation="LINEAR")
-        )
+        samplers.append(pygltflib.AnimationSampler(input=time_accessor, output=output, interpolation="LINEAR"))
         channels.append(
             pygltflib.AnimationChannel(
                 sampler=len(samplers) - 1, target=pygltflib.AnimationChannelTarget(node=node, path=path_name)
@@ -355,16 +345,12 @@ def save_glb(
 
     add_channel(0, "translation", build.accessor(anim.root_positions, _FLOAT, name="root_translation"))
     for j in range(num_joints):
-        add_channel(
-            j, "rotation", build.accessor(quats[:, j], _FLOAT, name=f"rotation_{anim.joint_names[j]}")
-        )
+        add_channel(j, "rotation", build.accessor(quats[:, j], _FLOAT, name=f"rotation_{anim.joint_names[j]}"))
     if expression_slot is not None and anim.expression_varies:
         weights = np.zeros((frames, len(targets)))
         weights[:, expression_slot:] = anim.expression - anim.base_expression
         add_channel(mesh_node, "weights", build.accessor(weights.reshape(-1), _FLOAT, name="morph_weights"))
-    animation_name = name or (
-        Path(anim.source).stem if anim.source and not anim.source.startswith("<") else "motion"
-    )
+    animation_name = name or (Path(anim.source).stem if anim.source and not anim.source.startswith("<") else "motion")
     gltf.animations.append(pygltflib.Animation(name=animation_name, samplers=samplers, channels=channels))
 
     report = ExportReport(

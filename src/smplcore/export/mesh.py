@@ -82,8 +82,7 @@ def save_mesh(
     suffix = out.suffix.lower()
     if suffix not in SUPPORTED_SUFFIXES:
         raise ValueError(
-            f"path: unsupported file suffix {out.suffix!r} in {str(out)!r}; supported: "
-            + ", ".join(SUPPORTED_SUFFIXES)
+            f"path: unsupported file suffix {out.suffix!r} in {str(out)!r}; supported: " + ", ".join(SUPPORTED_SUFFIXES)
         )
     verts = _check_vertices(vertices)
     tris = check_faces(faces, verts.shape[0])
@@ -106,9 +105,7 @@ def save_mesh(
         )
         out.write_text(data, encoding="utf-8")
     else:
-        data = trimesh.exchange.ply.export_ply(
-            mesh, encoding="binary", vertex_normal=False, include_attributes=False
-        )
+        data = trimesh.exchange.ply.export_ply(mesh, encoding="binary", vertex_normal=False, include_attributes=False)
         out.write_bytes(data)
     return out
 

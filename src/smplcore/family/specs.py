@@ -90,36 +90,66 @@ _HANDS = (PoseBlock("left_hand_pose", 15, hand="left"), PoseBlock("right_hand_po
 _FACE = (PoseBlock("jaw_pose", 1), PoseBlock("leye_pose", 1), PoseBlock("reye_pose", 1))
 
 SMPL = FamilySpec(
-    model_type="smpl", display_name="SMPL", num_vertices=6890, file_stem="SMPL_{GENDER}",
+    model_type="smpl",
+    display_name="SMPL",
+    num_vertices=6890,
+    file_stem="SMPL_{GENDER}",
     pose_blocks=(_GLOBAL, PoseBlock("body_pose", 23)),
-    joint_names=names.SMPL_JOINTS, vertex_ids=names.VERTEX_IDS_SMPLH,
+    joint_names=names.SMPL_JOINTS,
+    vertex_ids=names.VERTEX_IDS_SMPLH,
 )
 SMPLH = FamilySpec(
-    model_type="smplh", display_name="SMPL+H", num_vertices=6890, file_stem="SMPLH_{GENDER}",
+    model_type="smplh",
+    display_name="SMPL+H",
+    num_vertices=6890,
+    file_stem="SMPLH_{GENDER}",
     pose_blocks=(_GLOBAL, PoseBlock("body_pose", 21), *_HANDS),
-    joint_names=names.SMPLH_JOINTS, vertex_ids=names.VERTEX_IDS_SMPLH,
+    joint_names=names.SMPLH_JOINTS,
+    vertex_ids=names.VERTEX_IDS_SMPLH,
 )
 SMPLX = FamilySpec(
-    model_type="smplx", display_name="SMPL-X", num_vertices=10475, file_stem="SMPLX_{GENDER}",
+    model_type="smplx",
+    display_name="SMPL-X",
+    num_vertices=10475,
+    file_stem="SMPLX_{GENDER}",
     pose_blocks=(_GLOBAL, PoseBlock("body_pose", 21), *_FACE, *_HANDS),
-    joint_names=names.SMPLX_JOINTS, vertex_ids=names.VERTEX_IDS_SMPLX,
-    shape_space_dim=300, expression_space_dim=100, landmarks=True, neck_index=12,
+    joint_names=names.SMPLX_JOINTS,
+    vertex_ids=names.VERTEX_IDS_SMPLX,
+    shape_space_dim=300,
+    expression_space_dim=100,
+    landmarks=True,
+    neck_index=12,
 )
 MANO = FamilySpec(
-    model_type="mano", display_name="MANO", num_vertices=778, file_stem="MANO_{SIDE}",
+    model_type="mano",
+    display_name="MANO",
+    num_vertices=778,
+    file_stem="MANO_{SIDE}",
     pose_blocks=(_GLOBAL, PoseBlock("hand_pose", 15, hand="self")),
-    joint_names=names.MANO_JOINTS, extra_joints=False,
+    joint_names=names.MANO_JOINTS,
+    extra_joints=False,
 )
 FLAME = FamilySpec(
-    model_type="flame", display_name="FLAME", num_vertices=5023, file_stem="FLAME_{GENDER}",
+    model_type="flame",
+    display_name="FLAME",
+    num_vertices=5023,
+    file_stem="FLAME_{GENDER}",
     pose_blocks=(_GLOBAL, PoseBlock("neck_pose", 1), *_FACE),
-    joint_names=names.FLAME_JOINTS, extra_joints=False,
-    shape_space_dim=300, expression_space_dim=100, landmarks=True, neck_index=0,
+    joint_names=names.FLAME_JOINTS,
+    extra_joints=False,
+    shape_space_dim=300,
+    expression_space_dim=100,
+    landmarks=True,
+    neck_index=0,
 )
 OPEN = FamilySpec(
-    model_type="open", display_name="smplcore open model", num_vertices=None, file_stem="open_model",
+    model_type="open",
+    display_name="smplcore open model",
+    num_vertices=None,
+    file_stem="open_model",
     pose_blocks=(_GLOBAL, PoseBlock("body_pose", 23)),
-    joint_names=names.SMPL_JOINTS, vertex_ids=None,
+    joint_names=names.SMPL_JOINTS,
+    vertex_ids=None,
 )
 
 SPECS: dict[str, FamilySpec] = {spec.model_type: spec for spec in (SMPL, SMPLH, SMPLX, MANO, FLAME, OPEN)}
@@ -136,8 +166,9 @@ def get_spec(model_type: str) -> FamilySpec:
     return SPECS[key]
 
 
-def extra_joint_vertex_ids(vertex_ids: dict, use_hands: bool = True, use_feet_keypoints: bool = True
-                           ) -> tuple[list[str], list[int]]:
+def extra_joint_vertex_ids(
+    vertex_ids: dict, use_hands: bool = True, use_feet_keypoints: bool = True
+) -> tuple[list[str], list[int]]:
     """Names and vertex ids of the extra joints, in smplx's order (face, feet, fingertips)."""
     keys = list(names.FACE_KEYPOINTS)
     if use_feet_keypoints:

@@ -56,11 +56,20 @@ def read_container(path: str | Path) -> dict[str, Any]:
             raise ModelFileError(path, f"refused to load: {exc}; nothing in the file was run") from None
         except ModelFileError:
             raise
-        except (EOFError, pickle.UnpicklingError, zipfile.BadZipFile, ValueError, OSError, KeyError,
-                TypeError, IndexError) as exc:
+        except (
+            EOFError,
+            pickle.UnpicklingError,
+            zipfile.BadZipFile,
+            ValueError,
+            OSError,
+            KeyError,
+            TypeError,
+            IndexError,
+        ) as exc:
             raise ModelFileError(path, f"truncated or corrupt file ({type(exc).__name__}: {exc})") from None
-    raise ModelFileError(path, f"not a model file: expected a pickle (.pkl) or NumPy (.npz) file, "
-                               f"found data starting with {head[:8]!r}")
+    raise ModelFileError(
+        path, f"not a model file: expected a pickle (.pkl) or NumPy (.npz) file, found data starting with {head[:8]!r}"
+    )
 
 
 def _read_npy(fh: BinaryIO) -> np.ndarray | Any:

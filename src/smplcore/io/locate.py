@@ -10,8 +10,14 @@ from smplcore.family.specs import get_spec
 OPEN_MODEL_PATH = Path(__file__).resolve().parents[1] / "data" / "open_model.npz"
 
 
-def locate_model_file(model_path: str | Path | None, model_type: str | None = None, *, gender: str = "neutral",
-                      ext: str = "pkl", is_rhand: bool = True) -> Path:
+def locate_model_file(
+    model_path: str | Path | None,
+    model_type: str | None = None,
+    *,
+    gender: str = "neutral",
+    ext: str = "pkl",
+    is_rhand: bool = True,
+) -> Path:
     """The file to load.
 
     ``model_path`` may be a file (used as is), or a folder holding the official file names either
@@ -22,8 +28,9 @@ def locate_model_file(model_path: str | Path | None, model_type: str | None = No
     if model_path is None or str(model_path) == "":
         if model_type is not None and get_spec(model_type).model_type == "open":
             return OPEN_MODEL_PATH
-        raise ValueError("model_path: a model file or folder is needed (or model_type='open' for the "
-                         "packaged open model)")
+        raise ValueError(
+            "model_path: a model file or folder is needed (or model_type='open' for the packaged open model)"
+        )
     path = Path(model_path).expanduser()
     if path.is_file():
         return path
@@ -46,12 +53,21 @@ def locate_model_file(model_path: str | Path | None, model_type: str | None = No
         if candidate.is_file():
             return candidate
     present = sorted(p.name for p in folder.iterdir() if p.suffix in (".pkl", ".npz"))
-    raise ModelFileError(candidates[0], f"not found (model_type={spec.model_type!r}, gender={gender!r}, "
-                                        f"ext={ext!r}); model files in {folder}: {present or 'none'}")
+    raise ModelFileError(
+        candidates[0],
+        f"not found (model_type={spec.model_type!r}, gender={gender!r}, "
+        f"ext={ext!r}); model files in {folder}: {present or 'none'}",
+    )
 
 
-def read_model(model_path: str | Path | None, model_type: str | None = None, *, gender: str = "neutral",
-               ext: str = "pkl", is_rhand: bool = True):
+def read_model(
+    model_path: str | Path | None,
+    model_type: str | None = None,
+    *,
+    gender: str = "neutral",
+    ext: str = "pkl",
+    is_rhand: bool = True,
+):
     """Locate and load a model: :func:`locate_model_file` then :func:`smplcore.io.load_model`.
 
     For a folder, ``gender`` (and for MANO ``is_rhand``) choose the file and are recorded; for a

@@ -18,19 +18,71 @@ FORMAT_TAG = "smplcore-model-1"
 
 # Keys official files carry that smplcore does not need (read and ignored without a warning).
 _KNOWN_UNUSED = {
-    "J", "J_regressor_prior", "weights_prior", "vert_sym_idxs", "pose_training_info", "bs_style", "bs_type",
-    "hands_coeffsl", "hands_coeffsr", "hands_coeffs", "vt", "ft", "joint2num", "part2num", "allow_pickle",
-    "shapedirs_mean", "joint_names", "e", "u",
+    "J",
+    "J_regressor_prior",
+    "weights_prior",
+    "vert_sym_idxs",
+    "pose_training_info",
+    "bs_style",
+    "bs_type",
+    "hands_coeffsl",
+    "hands_coeffsr",
+    "hands_coeffs",
+    "vt",
+    "ft",
+    "joint2num",
+    "part2num",
+    "allow_pickle",
+    "shapedirs_mean",
+    "joint_names",
+    "e",
+    "u",
 }
-_OFFICIAL_KEYS = {"v_template", "f", "shapedirs", "posedirs", "J_regressor", "weights", "kintree_table",
-                  "hands_componentsl", "hands_componentsr", "hands_meanl", "hands_meanr", "hands_components",
-                  "hands_mean", "lmk_faces_idx", "lmk_bary_coords", "dynamic_lmk_faces_idx",
-                  "dynamic_lmk_bary_coords"}
-_OURS_OPTIONAL = {"posedirs", "exprdirs", "hands_components_left", "hands_components_right", "hands_mean_left",
-                  "hands_mean_right", "lmk_faces_idx", "lmk_bary_coords", "dynamic_lmk_faces_idx",
-                  "dynamic_lmk_bary_coords", "joint_names", "extra_joint_names", "extra_joint_vertex_ids"}
-_OURS_REQUIRED = {"format", "model_type", "gender", "v_template", "faces", "shapedirs", "J_regressor", "weights",
-                  "parents"}
+_OFFICIAL_KEYS = {
+    "v_template",
+    "f",
+    "shapedirs",
+    "posedirs",
+    "J_regressor",
+    "weights",
+    "kintree_table",
+    "hands_componentsl",
+    "hands_componentsr",
+    "hands_meanl",
+    "hands_meanr",
+    "hands_components",
+    "hands_mean",
+    "lmk_faces_idx",
+    "lmk_bary_coords",
+    "dynamic_lmk_faces_idx",
+    "dynamic_lmk_bary_coords",
+}
+_OURS_OPTIONAL = {
+    "posedirs",
+    "exprdirs",
+    "hands_components_left",
+    "hands_components_right",
+    "hands_mean_left",
+    "hands_mean_right",
+    "lmk_faces_idx",
+    "lmk_bary_coords",
+    "dynamic_lmk_faces_idx",
+    "dynamic_lmk_bary_coords",
+    "joint_names",
+    "extra_joint_names",
+    "extra_joint_vertex_ids",
+}
+_OURS_REQUIRED = {
+    "format",
+    "model_type",
+    "gender",
+    "v_template",
+    "faces",
+    "shapedirs",
+    "J_regressor",
+    "weights",
+    "parents",
+}
 
 # File names (upper-cased) that tell the model type when the name does not start with it.
 _NAME_PATTERNS = (
@@ -93,9 +145,24 @@ def save_npz(data: ModelData, path: str | Path) -> Path:
     arrays: dict[str, np.ndarray] = {"format": np.array(FORMAT_TAG)}
     for name in ("model_type", "gender"):
         arrays[name] = np.array(getattr(data, name))
-    for name in ("v_template", "faces", "shapedirs", "posedirs", "J_regressor", "weights", "parents", "exprdirs",
-                 "hands_components_left", "hands_components_right", "hands_mean_left", "hands_mean_right",
-                 "lmk_faces_idx", "lmk_bary_coords", "dynamic_lmk_faces_idx", "dynamic_lmk_bary_coords"):
+    for name in (
+        "v_template",
+        "faces",
+        "shapedirs",
+        "posedirs",
+        "J_regressor",
+        "weights",
+        "parents",
+        "exprdirs",
+        "hands_components_left",
+        "hands_components_right",
+        "hands_mean_left",
+        "hands_mean_right",
+        "lmk_faces_idx",
+        "lmk_bary_coords",
+        "dynamic_lmk_faces_idx",
+        "dynamic_lmk_bary_coords",
+    ):
         value = getattr(data, name)
         if value is not None:
             arrays[name] = np.asarray(value)
@@ -157,14 +224,19 @@ def _infer_model_type(path: Path, num_joints: int, requested: str | None) -> str
         requested = get_spec(requested).model_type
         expected_joints = get_spec(requested).num_joints
         if requested != "open" and num_joints != expected_joints:
-            found = f"a {num_joints}-joint " + (f"{get_spec(from_contents).display_name} model" if from_contents
-                                                 else "model")
-            raise ModelFileError(path, f"model_type={requested!r} needs {expected_joints} joints, but the file "
-                                       f"holds {found}", key="kintree_table")
+            found = f"a {num_joints}-joint " + (
+                f"{get_spec(from_contents).display_name} model" if from_contents else "model"
+            )
+            raise ModelFileError(
+                path,
+                f"model_type={requested!r} needs {expected_joints} joints, but the file holds {found}",
+                key="kintree_table",
+            )
         return requested
     if from_contents is None:
-        raise ModelFileError(path, f"cannot tell the model type of a {num_joints}-joint model; pass model_type",
-                             key="kintree_table")
+        raise ModelFileError(
+            path, f"cannot tell the model type of a {num_joints}-joint model; pass model_type", key="kintree_table"
+        )
     return from_contents
 
 
@@ -189,8 +261,11 @@ def _from_official(path: Path, raw: dict[str, Any], model_type: str | None, gend
     model_type = _infer_model_type(path, num_joints, model_type or model_type_from_name(path))
     spec = get_spec(model_type)
     if spec.num_vertices is not None and num_verts != spec.num_vertices:
-        raise ModelFileError(path, f"expected shape ({spec.num_vertices}, 3) for a {spec.display_name} model, "
-                                   f"found {v_template.shape}", key="v_template")
+        raise ModelFileError(
+            path,
+            f"expected shape ({spec.num_vertices}, 3) for a {spec.display_name} model, found {v_template.shape}",
+            key="v_template",
+        )
     vshape = f" [V={num_verts} from v_template]"
     jshape = f" [J={num_joints} from kintree_table]"
 
@@ -218,10 +293,12 @@ def _from_official(path: Path, raw: dict[str, Any], model_type: str | None, gend
         for side, suffix in (("left", "l"), ("right", "r")):
             comps = c.get(f"hands_components{suffix}", required=False)
             mean = c.get(f"hands_mean{suffix}", required=False)
-            hands[f"hands_components_{side}"] = None if comps is None else c.expect(
-                f"hands_components{suffix}", comps, (None, 45))
-            hands[f"hands_mean_{side}"] = None if mean is None else c.expect(
-                f"hands_mean{suffix}", mean.reshape(-1), (45,))
+            hands[f"hands_components_{side}"] = (
+                None if comps is None else c.expect(f"hands_components{suffix}", comps, (None, 45))
+            )
+            hands[f"hands_mean_{side}"] = (
+                None if mean is None else c.expect(f"hands_mean{suffix}", mean.reshape(-1), (45,))
+            )
     side = None
     if model_type == "mano":
         side = gender if gender in ("left", "right") else (gender_from_name(path) or "right")
@@ -237,10 +314,20 @@ def _from_official(path: Path, raw: dict[str, Any], model_type: str | None, gend
     elif gender is None:
         gender = gender_from_name(path) or ("generic" if model_type == "flame" else "neutral")
     return ModelData(
-        model_type=model_type, gender=gender,
-        v_template=v_template, faces=faces.astype(np.int64), shapedirs=shapedirs, posedirs=posedirs,
-        J_regressor=J_regressor, weights=weights, parents=_parents_from_kintree(kintree), exprdirs=exprdirs,
-        joint_names=spec.joint_names, source=str(path), **hands, **landmarks,
+        model_type=model_type,
+        gender=gender,
+        v_template=v_template,
+        faces=faces.astype(np.int64),
+        shapedirs=shapedirs,
+        posedirs=posedirs,
+        J_regressor=J_regressor,
+        weights=weights,
+        parents=_parents_from_kintree(kintree),
+        exprdirs=exprdirs,
+        joint_names=spec.joint_names,
+        source=str(path),
+        **hands,
+        **landmarks,
     )
 
 
@@ -284,16 +371,16 @@ def _check_faces(path: Path, faces: np.ndarray, num_verts: int) -> None:
 
 def _check_index(path: Path, key: str, index: np.ndarray, size: int) -> None:
     if index.size and (index.min() < 0 or index.max() >= size):
-        raise ModelFileError(path, f"indices must lie in [0, {size}), found [{index.min()}, {index.max()}]",
-                             key=key)
+        raise ModelFileError(path, f"indices must lie in [0, {size}), found [{index.min()}, {index.max()}]", key=key)
 
 
 def _from_smplcore_npz(path: Path, raw: dict[str, Any], model_type: str | None) -> ModelData:
     c = _Checker(path, raw)
     tag = str(raw["format"])
     if tag != FORMAT_TAG:
-        raise ModelFileError(path, f"unsupported smplcore format {tag!r} (this version reads {FORMAT_TAG!r})",
-                             key="format")
+        raise ModelFileError(
+            path, f"unsupported smplcore format {tag!r} (this version reads {FORMAT_TAG!r})", key="format"
+        )
     missing = sorted(_OURS_REQUIRED - set(raw))
     if missing:
         raise ModelFileError(path, f"missing key(s) {missing}", key=missing[0])
@@ -304,8 +391,9 @@ def _from_smplcore_npz(path: Path, raw: dict[str, Any], model_type: str | None) 
     if stored_type not in MODEL_TYPES:
         raise ModelFileError(path, f"unknown model type {stored_type!r}", key="model_type")
     if model_type is not None and get_spec(model_type).model_type != stored_type:
-        raise ModelFileError(path, f"holds a {stored_type!r} model, but model_type={model_type!r} was asked",
-                             key="model_type")
+        raise ModelFileError(
+            path, f"holds a {stored_type!r} model, but model_type={model_type!r} was asked", key="model_type"
+        )
     v = c.expect("v_template", c.get("v_template"), (None, 3))
     parents = c.expect("parents", c.get("parents"), (None,)).astype(np.int64)
     nv, nj = v.shape[0], parents.shape[0]
@@ -313,16 +401,24 @@ def _from_smplcore_npz(path: Path, raw: dict[str, Any], model_type: str | None) 
     faces = c.expect("faces", c.get("faces"), (None, 3))
     _check_faces(path, faces, nv)
     arrays: dict[str, Any] = dict(
-        v_template=v, faces=faces.astype(np.int64), parents=parents,
+        v_template=v,
+        faces=faces.astype(np.int64),
+        parents=parents,
         shapedirs=c.expect("shapedirs", c.get("shapedirs"), (nv, 3, None), vj),
         J_regressor=c.expect("J_regressor", c.get("J_regressor"), (nj, nv), vj),
         weights=c.expect("weights", c.get("weights"), (nv, nj), vj),
     )
     optional_shapes = {
-        "posedirs": (nv, 3, 9 * (nj - 1)), "exprdirs": (nv, 3, None),
-        "hands_components_left": (None, 45), "hands_components_right": (None, 45),
-        "hands_mean_left": (45,), "hands_mean_right": (45,), "lmk_faces_idx": (None,), "lmk_bary_coords": (None, 3),
-        "dynamic_lmk_faces_idx": (79, None), "dynamic_lmk_bary_coords": (79, None, 3),
+        "posedirs": (nv, 3, 9 * (nj - 1)),
+        "exprdirs": (nv, 3, None),
+        "hands_components_left": (None, 45),
+        "hands_components_right": (None, 45),
+        "hands_mean_left": (45,),
+        "hands_mean_right": (45,),
+        "lmk_faces_idx": (None,),
+        "lmk_bary_coords": (None, 3),
+        "dynamic_lmk_faces_idx": (79, None),
+        "dynamic_lmk_bary_coords": (79, None, 3),
     }
     for key, shape in optional_shapes.items():
         value = c.get(key, required=False)
@@ -334,10 +430,17 @@ def _from_smplcore_npz(path: Path, raw: dict[str, Any], model_type: str | None) 
     names = {key: tuple(str(s) for s in raw[key]) for key in ("joint_names", "extra_joint_names") if key in raw}
     extra_ids = tuple(int(i) for i in raw.get("extra_joint_vertex_ids", ()))
     if len(extra_ids) != len(names.get("extra_joint_names", ())):
-        raise ModelFileError(path, "extra_joint_names and extra_joint_vertex_ids differ in length",
-                             key="extra_joint_vertex_ids")
+        raise ModelFileError(
+            path, "extra_joint_names and extra_joint_vertex_ids differ in length", key="extra_joint_vertex_ids"
+        )
     if extra_ids:
         _check_index(path, "extra_joint_vertex_ids", np.asarray(extra_ids), nv)
-    return ModelData(model_type=stored_type, gender=str(raw["gender"]), source=str(path),
-                     joint_names=names.get("joint_names"), extra_joint_names=names.get("extra_joint_names", ()),
-                     extra_joint_vertex_ids=extra_ids, **arrays)
+    return ModelData(
+        model_type=stored_type,
+        gender=str(raw["gender"]),
+        source=str(path),
+        joint_names=names.get("joint_names"),
+        extra_joint_names=names.get("extra_joint_names", ()),
+        extra_joint_vertex_ids=extra_ids,
+        **arrays,
+    )

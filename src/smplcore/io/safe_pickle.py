@@ -77,8 +77,21 @@ for _mod in ("numpy.core.numeric", "numpy._core.numeric"):
 
 _BUILTINS = {
     name: getattr(__import__("builtins"), name)
-    for name in ("set", "frozenset", "list", "dict", "tuple", "int", "float", "complex", "bytes", "bytearray",
-                 "str", "bool", "object")
+    for name in (
+        "set",
+        "frozenset",
+        "list",
+        "dict",
+        "tuple",
+        "int",
+        "float",
+        "complex",
+        "bytes",
+        "bytearray",
+        "str",
+        "bool",
+        "object",
+    )
 }
 
 _SPARSE_CLASSES = {"csc_matrix", "csr_matrix", "coo_matrix", "csc_array", "csr_array", "coo_array"}
@@ -138,7 +151,8 @@ def _chumpy_value(obj: ChumpyObject) -> np.ndarray:
     if "x" not in state:
         raise pickle.UnpicklingError(
             f"chumpy object {obj.module}.{obj.name} has no stored value 'x' "
-            "(only plain chumpy arrays can be read without chumpy)")
+            "(only plain chumpy arrays can be read without chumpy)"
+        )
     return np.asarray(materialize(state["x"]))
 
 

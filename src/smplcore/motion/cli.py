@@ -54,17 +54,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument(
-        "input", type=Path, metavar="IN_DIR", help="folder of sequences (searched recursively) or one file"
-    )
+    p.add_argument("input", type=Path, metavar="IN_DIR", help="folder of sequences (searched recursively) or one file")
     p.add_argument("output", type=Path, metavar="OUT_DIR", help="output folder")
     m = p.add_argument_group("model")
-    m.add_argument(
-        "--model-path", default=None, help="model file or folder (default: the packaged open model)"
-    )
-    m.add_argument(
-        "--model-type", default=None, help="smplh, smplx, smpl or open (default: the type each file names)"
-    )
+    m.add_argument("--model-path", default=None, help="model file or folder (default: the packaged open model)")
+    m.add_argument("--model-type", default=None, help="smplh, smplx, smpl or open (default: the type each file names)")
     m.add_argument(
         "--gender",
         choices=GENDER_RULES,
@@ -72,9 +66,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="file: the gendered model each file names (default); humanml3d: male if the file says "
         "male, else female; or one fixed gender",
     )
-    m.add_argument(
-        "--ext", choices=("npz", "pkl"), default=None, help="model file extension (default: npz, then pkl)"
-    )
+    m.add_argument("--ext", choices=("npz", "pkl"), default=None, help="model file extension (default: npz, then pkl)")
     m.add_argument("--num-betas", type=_count, default=None, help="shape coefficients used (default: all)")
     o = p.add_argument_group("what to write")
     o.add_argument(
@@ -85,9 +77,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--resample stride --axes xzy --format npy (explicit options win)",
     )
     o.add_argument("--joints", action="store_true", help="write joints (always done; the default)")
-    o.add_argument(
-        "--vertices", action="store_true", default=None, help="also write mesh vertices (npz only)"
-    )
+    o.add_argument("--vertices", action="store_true", default=None, help="also write mesh vertices (npz only)")
     o.add_argument(
         "--extra-joints",
         action="store_true",
@@ -95,9 +85,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="keep the extra vertex joints and landmarks after the skeleton joints",
     )
     o.add_argument("--num-joints", type=_count, default=None, help="keep the first N joints (HumanML3D: 22)")
-    o.add_argument(
-        "--fps", type=_positive_float, default=None, help="output frame rate (default: the source's)"
-    )
+    o.add_argument("--fps", type=_positive_float, default=None, help="output frame rate (default: the source's)")
     o.add_argument(
         "--resample",
         choices=METHODS,
@@ -139,8 +127,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         const="local",
         default=None,
         metavar="ADDRESS",
-        help="run as Ray tasks: a local cluster without ADDRESS, else ray.init(address=ADDRESS) "
-        "(pip install ray)",
+        help="run as Ray tasks: a local cluster without ADDRESS, else ray.init(address=ADDRESS) (pip install ray)",
     )
     r.add_argument(
         "--backend",

@@ -246,8 +246,7 @@ class Evaluator:
         verts_out: list[np.ndarray] = []
         for start in range(0, frames, chunk):
             part = {
-                k: (v[start : start + chunk] if v.shape[0] == frames and k != "betas" else v)
-                for k, v in params.items()
+                k: (v[start : start + chunk] if v.shape[0] == frames and k != "betas" else v) for k, v in params.items()
             }
             if skeleton:
                 joints, verts = _skeleton_joints(loaded, part), None
@@ -330,8 +329,7 @@ def _skeleton_joints(loaded: LoadedModel, params: dict[str, np.ndarray]) -> np.n
 
     def run() -> np.ndarray:
         blocks = [
-            params[b.name] if b.name in params else zeros(batch, 3 * b.num_joints)
-            for b in setup.spec.pose_blocks
+            params[b.name] if b.name in params else zeros(batch, 3 * b.num_joints) for b in setup.spec.pose_blocks
         ]
         rotmats = rodrigues(xp.concat(blocks, axis=1).reshape(batch, -1, 3))
         coeffs = coefficients("betas", setup.num_betas)
@@ -351,11 +349,7 @@ def _skeleton_joints(loaded: LoadedModel, params: dict[str, np.ndarray]) -> np.n
                 coeffs = xp.concat([coeffs, expression], axis=1)
         rest = rest_joints(coeffs, arrays)
         if rest.shape[0] != batch:
-            rest = (
-                rest.expand(batch, -1, -1)
-                if torch_backend
-                else np.broadcast_to(rest, (batch,) + rest.shape[1:])
-            )
+            rest = rest.expand(batch, -1, -1) if torch_backend else np.broadcast_to(rest, (batch,) + rest.shape[1:])
         _, posed = world_transforms(rotmats, rest, arrays.tree)
         out = posed + transl[:, None]
         return out.numpy() if torch_backend else out

@@ -138,9 +138,7 @@ class ProcessOptions:
             raise ValueError("format: 'npy' holds the joints only; use format 'npz' to write vertices")
         for name in ("num_betas", "num_joints"):
             value = getattr(self, name)
-            if value is not None and (
-                not isinstance(value, int) or value < (0 if name == "num_betas" else 1)
-            ):
+            if value is not None and (not isinstance(value, int) or value < (0 if name == "num_betas" else 1)):
                 raise ValueError(f"{name}: expected a positive integer, got {value!r}")
         if self.chunk is not None and self.chunk < 1:
             raise ValueError(f"chunk: expected a positive number of frames, got {self.chunk}")
@@ -299,8 +297,7 @@ def process_file(task: Task, state: WorkerState) -> dict[str, Any]:
         if options.num_joints is not None:
             if options.num_joints > keep:
                 raise ValueError(
-                    f"num_joints: {options.num_joints} asked, but the {loaded.model_type} model gives "
-                    f"{keep} joints"
+                    f"num_joints: {options.num_joints} asked, but the {loaded.model_type} model gives {keep} joints"
                 )
             keep = options.num_joints
         joints, names = joints[:, :keep], names[:keep]
@@ -459,9 +456,7 @@ def _mp_context(options: ProcessOptions) -> Any:
     return context
 
 
-def _run_pool(
-    tasks: list[Task], options: ProcessOptions, workers: int, on_result: Callable, tick: Callable
-) -> None:
+def _run_pool(tasks: list[Task], options: ProcessOptions, workers: int, on_result: Callable, tick: Callable) -> None:
     threads = max(1, available_cpus() // workers)
     context = _mp_context(options)
     attempts: dict[str, int] = {}
@@ -615,8 +610,7 @@ class Summary:
 
     def format(self) -> str:
         lines = [
-            f"{self.files} files: {self.done} processed, {self.existing} already done, "
-            f"{len(self.skipped)} skipped",
+            f"{self.files} files: {self.done} processed, {self.existing} already done, {len(self.skipped)} skipped",
             f"{self.frames:,} frames (from {self.source_frames:,} source frames) in {self.seconds:.1f} s: "
             f"{self.frames_per_second:,.0f} frames/s "
             + ("in this process" if self.workers == 0 else f"with {self.workers} {self.executor}"),
@@ -655,9 +649,7 @@ def find_inputs(
             size = path.stat().st_size
         except OSError:
             size = 0
-        tasks.append(
-            Task(str(path.resolve()), rel.as_posix(), str(output_dir / rel.with_suffix(options.suffix)), size)
-        )
+        tasks.append(Task(str(path.resolve()), rel.as_posix(), str(output_dir / rel.with_suffix(options.suffix)), size))
     tasks.sort(key=lambda t: (-t.size, t.relative))
     return tasks
 
@@ -776,8 +768,7 @@ class _Progress:
         elif self.enabled and (time.monotonic() - self.last_line > 5 or self.count == self.total):
             self.last_line = time.monotonic()
             print(
-                f"process: {self.count}/{self.total} files, {frames:,} frames, "
-                f"{frames / elapsed:,.0f} frames/s",
+                f"process: {self.count}/{self.total} files, {frames:,} frames, {frames / elapsed:,.0f} frames/s",
                 file=sys.stderr,
                 flush=True,
             )
@@ -833,8 +824,10 @@ def process_tree(
     if options.model_path is not None and not Path(options.model_path).exists():
         raise ProcessError(f"{options.model_path}: no such model file or folder")
     if options.model_path is None and options.model_type not in (None, "open"):
-        raise ProcessError(f"model_type {options.model_type!r} needs a model file or folder (--model-path); "
-                           "without one, the packaged open model is used (model_type 'open')")
+        raise ProcessError(
+            f"model_type {options.model_type!r} needs a model file or folder (--model-path); "
+            "without one, the packaged open model is used (model_type 'open')"
+        )
     output_dir.mkdir(parents=True, exist_ok=True)
     executor = "Ray CPUs" if ray_address is not None else "processes"
     if workers is None:
@@ -918,8 +911,7 @@ def process_tree(
             else:
                 summary.skipped.append((entry["input"], entry.get("reason", "unknown")))
                 bar.write(
-                    f"skipped {input_dir / entry['input'] if input_dir.is_dir() else input_dir}: "
-                    f"{entry.get('reason')}"
+                    f"skipped {input_dir / entry['input'] if input_dir.is_dir() else input_dir}: {entry.get('reason')}"
                 )
             bar.update(summary.frames)
 

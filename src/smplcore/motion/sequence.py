@@ -57,8 +57,10 @@ class Motion:
         poses = np.asarray(self.poses)
         trans = np.asarray(self.trans)
         if poses.ndim != 2 or poses.shape[1] != POSE_WIDTH.get(self.model_type, -1):
-            raise ShapeError(f"poses: expected shape (T, {POSE_WIDTH.get(self.model_type, '3 J')}) for a "
-                             f"{self.model_type!r} motion, got {poses.shape}")
+            raise ShapeError(
+                f"poses: expected shape (T, {POSE_WIDTH.get(self.model_type, '3 J')}) for a "
+                f"{self.model_type!r} motion, got {poses.shape}"
+            )
         if trans.shape != (poses.shape[0], 3):
             raise ShapeError(f"trans: expected shape ({poses.shape[0]}, 3) to match poses, got {trans.shape}")
         if not np.isfinite(poses).all() or not np.isfinite(trans).all():
@@ -82,9 +84,14 @@ class Motion:
     def slice(self, start: int = 0, stop: int | None = None, step: int = 1) -> Motion:
         """Frames ``start:stop:step`` (the frame rate divides by ``step``)."""
         sl = np.s_[start:stop:step]
-        return replace(self, poses=self.poses[sl], trans=self.trans[sl], fps=self.fps / step,
-                       expression=None if self.expression is None else self.expression[sl],
-                       dmpls=None if self.dmpls is None else self.dmpls[sl])
+        return replace(
+            self,
+            poses=self.poses[sl],
+            trans=self.trans[sl],
+            fps=self.fps / step,
+            expression=None if self.expression is None else self.expression[sl],
+            dmpls=None if self.dmpls is None else self.dmpls[sl],
+        )
 
     def resample(self, fps: float, method: str = "interp") -> Motion:
         """The motion at ``fps`` frames per second.
@@ -106,8 +113,14 @@ class Motion:
         def linear(a: np.ndarray | None) -> np.ndarray | None:
             return None if a is None else rs.apply_linear(a, p)
 
-        return replace(self, poses=rs.apply_rotations(self.poses, p), trans=linear(self.trans), fps=p.fps,
-                       expression=linear(self.expression), dmpls=linear(self.dmpls))
+        return replace(
+            self,
+            poses=rs.apply_rotations(self.poses, p),
+            trans=linear(self.trans),
+            fps=p.fps,
+            expression=linear(self.expression),
+            dmpls=linear(self.dmpls),
+        )
 
     def model_params(self, model_type: str, joint_names: list[str] | None = None) -> dict[str, np.ndarray]:
         """Keyword arguments for a model of ``model_type``: its pose blocks, ``transl`` and ``betas``.
@@ -144,8 +157,19 @@ def _text(value: Any) -> str:
 
 # The keys a motion is made of; an AMASS file holds more (e.g. SMPL-X files repeat the pose in
 # ``root_orient``/``pose_body``/..., and hold marker data) that are not read.
-_MOTION_KEYS = ("poses", "trans", "betas", "gender", "surface_model_type", "mocap_framerate",
-                "mocap_frame_rate", "fps", "frame_rate", "expression", "dmpls")
+_MOTION_KEYS = (
+    "poses",
+    "trans",
+    "betas",
+    "gender",
+    "surface_model_type",
+    "mocap_framerate",
+    "mocap_frame_rate",
+    "fps",
+    "frame_rate",
+    "expression",
+    "dmpls",
+)
 
 
 def _read_motion_arrays(path: Path) -> dict[str, Any]:
@@ -199,12 +223,17 @@ def load_motion(path: str | Path) -> Motion:
     declared = _text(raw["surface_model_type"]).lower() if "surface_model_type" in raw else None
     model_type = declared or _TYPE_BY_WIDTH.get(poses.shape[1])
     if model_type not in POSE_WIDTH:
-        raise ModelFileError(path, f"cannot tell the body model from {poses.shape[1]} pose values per frame "
-                                   f"(expected one of {sorted(_TYPE_BY_WIDTH)})", key="poses")
+        raise ModelFileError(
+            path,
+            f"cannot tell the body model from {poses.shape[1]} pose values per frame "
+            f"(expected one of {sorted(_TYPE_BY_WIDTH)})",
+            key="poses",
+        )
     fps_key = next((k for k in ("mocap_framerate", "mocap_frame_rate", "fps", "frame_rate") if k in raw), None)
     if fps_key is None:
-        raise ModelFileError(path, "missing the frame rate (mocap_framerate or mocap_frame_rate)",
-                             key="mocap_framerate")
+        raise ModelFileError(
+            path, "missing the frame rate (mocap_framerate or mocap_frame_rate)", key="mocap_framerate"
+        )
     gender = _text(raw.get("gender", "neutral")).strip().lower() or "neutral"
     betas = np.asarray(raw.get("betas", np.zeros(10)), dtype=np.float64).reshape(-1)
     if not np.isfinite(betas).all():
@@ -212,8 +241,9 @@ def load_motion(path: str | Path) -> Motion:
     optional = {k: np.asarray(raw[k], dtype=np.float64) for k in ("expression", "dmpls") if k in raw}
     for key, value in optional.items():
         if value.ndim != 2 or value.shape[0] != poses.shape[0]:
-            raise ModelFileError(path, f"expected shape ({poses.shape[0]}, n) to match poses, "
-                                       f"found {value.shape}", key=key)
+            raise ModelFileError(
+                path, f"expected shape ({poses.shape[0]}, n) to match poses, found {value.shape}", key=key
+            )
         if not np.isfinite(value).all():
             raise ModelFileError(path, "contains NaN or infinite values", key=key)
     try:
@@ -221,9 +251,16 @@ def load_motion(path: str | Path) -> Motion:
     except (ValueError, TypeError, IndexError):
         raise ModelFileError(path, f"expected a frame rate, found {raw[fps_key]!r}", key=fps_key) from None
     try:
-        return Motion(poses=poses, trans=np.asarray(raw["trans"], dtype=np.float64), betas=betas,
-                      fps=fps, model_type=model_type, gender=gender,
-                      source=str(path), **optional)
+        return Motion(
+            poses=poses,
+            trans=np.asarray(raw["trans"], dtype=np.float64),
+            betas=betas,
+            fps=fps,
+            model_type=model_type,
+            gender=gender,
+            source=str(path),
+            **optional,
+        )
     except (ShapeError, ValueError) as exc:
         key = str(exc).split(":")[0] if ":" in str(exc) else None
         raise ModelFileError(path, str(exc).split(": ", 1)[-1], key=key) from None
@@ -232,8 +269,13 @@ def load_motion(path: str | Path) -> Motion:
 def save_motion(motion: Motion, path: str | Path) -> Path:
     """Write ``motion`` as an AMASS-style ``.npz`` (no pickles)."""
     path = Path(path)
-    arrays = {"poses": motion.poses, "trans": motion.trans, "betas": motion.betas, "gender": np.array(motion.gender),
-              "surface_model_type": np.array(motion.model_type)}
+    arrays = {
+        "poses": motion.poses,
+        "trans": motion.trans,
+        "betas": motion.betas,
+        "gender": np.array(motion.gender),
+        "surface_model_type": np.array(motion.model_type),
+    }
     arrays["mocap_frame_rate" if motion.model_type == "smplx" else "mocap_framerate"] = np.array(motion.fps)
     if motion.expression is not None:
         arrays["expression"] = motion.expression

@@ -110,9 +110,7 @@ def _look_at(eye: np.ndarray, target: np.ndarray, up: Sequence[float] = (0.0, 1.
     return pose
 
 
-def _layout(
-    verts: np.ndarray, joints: np.ndarray | None, angle_deg: float
-) -> tuple[np.ndarray, np.ndarray | None]:
+def _layout(verts: np.ndarray, joints: np.ndarray | None, angle_deg: float) -> tuple[np.ndarray, np.ndarray | None]:
     """Turn each mesh so the camera (looking down -Z) sees it from ``angle_deg`` and lay the
     meshes of a batch out left to right along X, centred on x = 0.
 
@@ -139,9 +137,7 @@ def _layout(
     return out, jout
 
 
-def _frame(
-    lo: np.ndarray, hi: np.ndarray, yfov: float, aspect: float
-) -> tuple[np.ndarray, float, float, float]:
+def _frame(lo: np.ndarray, hi: np.ndarray, yfov: float, aspect: float) -> tuple[np.ndarray, float, float, float]:
     """Camera on +Z looking down -Z at the box centre, far enough that the whole box [lo, hi]
     projects inside ``_FILL`` of the image in both directions. Returns (pose, distance, znear, zfar).
     """
@@ -186,8 +182,7 @@ def _import_pyrender():
         import trimesh
     except ModuleNotFoundError as exc:
         raise RuntimeError(
-            f"rendering needs pyrender and trimesh ({exc}); install them with "
-            "`pip install 'smplcore[render]'`"
+            f"rendering needs pyrender and trimesh ({exc}); install them with `pip install 'smplcore[render]'`"
         ) from exc
     except Exception as exc:  # PyOpenGL raises ImportError & co. when the platform library is missing
         raise RuntimeError(_context_help(exc)) from exc
@@ -309,9 +304,7 @@ def render_mesh(
             try:
                 radius = float(joint_radius)
             except (TypeError, ValueError):
-                raise ValueError(
-                    f"joint_radius: expected a positive number of metres, got {joint_radius!r}"
-                ) from None
+                raise ValueError(f"joint_radius: expected a positive number of metres, got {joint_radius!r}") from None
             if not (math.isfinite(radius) and radius > 0.0):
                 raise ValueError(f"joint_radius: expected a positive number of metres, got {joint_radius!r}")
 
@@ -348,9 +341,7 @@ def render_mesh(
         )
         scene.add(pyrender.Mesh.from_trimesh(sphere, material=jmaterial, poses=poses, smooth=True))
 
-    cam = pyrender.PerspectiveCamera(
-        yfov=math.radians(yfov), znear=znear, zfar=zfar, aspectRatio=width / height
-    )
+    cam = pyrender.PerspectiveCamera(yfov=math.radians(yfov), znear=znear, zfar=zfar, aspectRatio=width / height)
     scene.add(cam, pose=cam_pose)
 
     target = 0.5 * (lo + hi)
@@ -384,11 +375,7 @@ def save_png(image: Any, path: str | os.PathLike) -> Path:
     except ImportError as exc:
         raise RuntimeError(f"save_png needs Pillow ({exc}); install it with `pip install pillow`") from exc
     arr = as_array("image", image)
-    if (
-        not (arr.ndim == 2 or (arr.ndim == 3 and arr.shape[2] in (3, 4)))
-        or arr.shape[0] < 1
-        or arr.shape[1] < 1
-    ):
+    if not (arr.ndim == 2 or (arr.ndim == 3 and arr.shape[2] in (3, 4))) or arr.shape[0] < 1 or arr.shape[1] < 1:
         raise _ShapeError(f"image: expected shape (H, W), (H, W, 3) or (H, W, 4), got {tuple(arr.shape)}")
     if arr.dtype != np.uint8:
         raise ValueError(f"image: expected dtype uint8, got {arr.dtype}")

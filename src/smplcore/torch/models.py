@@ -31,15 +31,43 @@ from smplcore.io.model_files import _from_official
 from smplcore.model_setup import ModelSetup, batch_of, evaluate, warn_once
 from smplcore.torch.outputs import Deferred, FLAMEOutput, MANOOutput, ModelOutput, SMPLHOutput, SMPLOutput, SMPLXOutput
 
-__all__ = ["create", "build_layer", "BodyModule", "SMPL", "SMPLH", "SMPLX", "MANO", "FLAME", "OpenModel",
-           "SMPLLayer", "SMPLHLayer", "SMPLXLayer", "MANOLayer", "FLAMELayer", "ModelOutput", "SMPLOutput",
-           "SMPLHOutput", "SMPLXOutput", "MANOOutput", "FLAMEOutput"]
+__all__ = [
+    "create",
+    "build_layer",
+    "BodyModule",
+    "SMPL",
+    "SMPLH",
+    "SMPLX",
+    "MANO",
+    "FLAME",
+    "OpenModel",
+    "SMPLLayer",
+    "SMPLHLayer",
+    "SMPLXLayer",
+    "MANOLayer",
+    "FLAMELayer",
+    "ModelOutput",
+    "SMPLOutput",
+    "SMPLHOutput",
+    "SMPLXOutput",
+    "MANOOutput",
+    "FLAMEOutput",
+]
 
 # smplx's constructor keywords that set up the model (all other known ones create parameters).
 _SETUP_OPTIONS = {
-    "num_betas": 10, "num_expression_coeffs": 10, "use_pca": True, "num_pca_comps": 6, "flat_hand_mean": False,
-    "use_face_contour": False, "use_hands": True, "use_feet_keypoints": True, "vertex_ids": None, "age": "adult",
-    "kid_template_path": "", "v_template": None,
+    "num_betas": 10,
+    "num_expression_coeffs": 10,
+    "use_pca": True,
+    "num_pca_comps": 6,
+    "flat_hand_mean": False,
+    "use_face_contour": False,
+    "use_hands": True,
+    "use_feet_keypoints": True,
+    "vertex_ids": None,
+    "age": "adult",
+    "kid_template_path": "",
+    "v_template": None,
 }
 # Accepted for compatibility and without effect here.
 _INERT_OPTIONS = {"use_compressed", "create_vertex_joint_selector"}
@@ -57,16 +85,33 @@ class BodyModule(nn.Module):
 
     SPEC: FamilySpec = SMPL_SPEC
     LAYER = False
-    FORWARD_ARGS: tuple[str, ...] = ("betas", "body_pose", "global_orient", "transl", "return_verts",
-                                     "return_full_pose", "pose2rot")
+    FORWARD_ARGS: tuple[str, ...] = (
+        "betas",
+        "body_pose",
+        "global_orient",
+        "transl",
+        "return_verts",
+        "return_full_pose",
+        "pose2rot",
+    )
     OUTPUT: type = SMPLOutput
     MAPPER_TAKES_VERTICES = False
     SHAPE_SPACE_DIM = 300
 
-    def __init__(self, model_path: str | Path | None = None, *, data_struct: Any = None,
-                 data: ModelData | None = None, gender: str = "neutral", ext: str = "pkl",
-                 dtype: torch.dtype = torch.float32, batch_size: int = 1, joint_mapper: Callable | None = None,
-                 is_rhand: bool = True, **kwargs: Any) -> None:
+    def __init__(
+        self,
+        model_path: str | Path | None = None,
+        *,
+        data_struct: Any = None,
+        data: ModelData | None = None,
+        gender: str = "neutral",
+        ext: str = "pkl",
+        dtype: torch.dtype = torch.float32,
+        batch_size: int = 1,
+        joint_mapper: Callable | None = None,
+        is_rhand: bool = True,
+        **kwargs: Any,
+    ) -> None:
         super().__init__()
         spec = self.SPEC
         name = type(self).__name__
@@ -82,13 +127,14 @@ class BodyModule(nn.Module):
             warn_once(name, f"{name}: ignoring unknown keyword argument {k!r}", key=k)
 
         if data is None and data_struct is not None:
-            data = _from_official(Path(f"<data_struct for {name}>"), dict(vars(data_struct)), spec.model_type,
-                                  gender)
+            data = _from_official(Path(f"<data_struct for {name}>"), dict(vars(data_struct)), spec.model_type, gender)
         if data is None:
             data = read_model(model_path, spec.model_type, gender=gender, ext=ext, is_rhand=is_rhand)
         if data.model_type != spec.model_type:
-            raise ValueError(f"{name} cannot run a {data.model_type!r} model from {data.source}; "
-                             f"use smplcore.create() to pick the class from the file")
+            raise ValueError(
+                f"{name} cannot run a {data.model_type!r} model from {data.source}; "
+                f"use smplcore.create() to pick the class from the file"
+            )
         if self.LAYER:
             setup_opts["use_pca"] = False
         setup = ModelSetup.build(data, owner=name, **setup_opts)
@@ -146,8 +192,9 @@ class BodyModule(nn.Module):
         """smplx's buffer names: ``left_hand_components``, ``right_hand_mean``, ``hand_mean``, ..."""
         return block.replace("_pose", "") + "_" + kind
 
-    def _create_parameters(self, setup: ModelSetup, initial: dict, create: dict, batch_size: int,
-                           dtype: torch.dtype) -> None:
+    def _create_parameters(
+        self, setup: ModelSetup, initial: dict, create: dict, batch_size: int, dtype: torch.dtype
+    ) -> None:
         widths = {b.name: setup.pose_width(b.name) for b in self.SPEC.pose_blocks}
         widths.update(betas=setup.num_betas, transl=3)
         if self.SPEC.has_expression:
@@ -189,8 +236,11 @@ class BodyModule(nn.Module):
         return int(self.faces.shape[0])
 
     def extra_repr(self) -> str:
-        lines = [f"Gender: {self.gender.upper()}", f"Number of joints: {self.J_regressor.shape[0]}",
-                 f"Betas: {self.num_betas}"]
+        lines = [
+            f"Gender: {self.gender.upper()}",
+            f"Number of joints: {self.J_regressor.shape[0]}",
+            f"Betas: {self.num_betas}",
+        ]
         if self.SPEC.has_expression:
             lines.append(f"Number of expression coefficients: {self.num_expression_coeffs}")
         if self.SPEC.hand_blocks:
@@ -208,8 +258,14 @@ class BodyModule(nn.Module):
                 param.fill_(0)
 
     def _engine_arrays(self) -> engine.BodyArrays:
-        return engine.BodyArrays(self._engine_blend_basis, self._num_coeffs, self._engine_joint_basis,
-                                 self._engine_weights_t, self._tree, self._engine_derived)
+        return engine.BodyArrays(
+            self._engine_blend_basis,
+            self._num_coeffs,
+            self._engine_joint_basis,
+            self._engine_weights_t,
+            self._tree,
+            self._engine_derived,
+        )
 
     # smplx's blend-shape buffers, as views of the engine's single basis (no second copy in memory)
     def _basis_rows(self, start: int, stop: int) -> torch.Tensor:
@@ -275,8 +331,10 @@ class BodyModule(nn.Module):
         with a warning that names them.
         """
         if len(args) > len(self.FORWARD_ARGS):
-            raise TypeError(f"{type(self).__name__}.forward takes at most {len(self.FORWARD_ARGS)} positional "
-                            f"arguments ({', '.join(self.FORWARD_ARGS)})")
+            raise TypeError(
+                f"{type(self).__name__}.forward takes at most {len(self.FORWARD_ARGS)} positional "
+                f"arguments ({', '.join(self.FORWARD_ARGS)})"
+            )
         for key, value in zip(self.FORWARD_ARGS, args):
             if key in kwargs:
                 raise TypeError(f"{type(self).__name__}.forward got multiple values for argument {key!r}")
@@ -288,21 +346,38 @@ class BodyModule(nn.Module):
         names = [b.name for b in self.SPEC.pose_blocks] + ["betas", "transl"]
         names += ["expression"] if self.SPEC.has_expression else []
         for key in sorted(set(kwargs) - set(names)):
-            warn_once(f"{type(self).__name__}.forward", f"{type(self).__name__}.forward: ignoring unknown "
-                                                        f"keyword argument {key!r}", key=key)
+            warn_once(
+                f"{type(self).__name__}.forward",
+                f"{type(self).__name__}.forward: ignoring unknown keyword argument {key!r}",
+                key=key,
+            )
         given = {k: self._as_tensor(k, kwargs.get(k)) for k in names}
         params = self._with_defaults(given, use_pose_defaults=pose2rot)
-        out = evaluate(self.setup, self._engine_arrays(), params, rotation_matrices=not pose2rot,
-                       vertices=return_verts, like=self.v_template)
+        out = evaluate(
+            self.setup,
+            self._engine_arrays(),
+            params,
+            rotation_matrices=not pose2rot,
+            vertices=return_verts,
+            like=self.v_template,
+        )
         vertices, joints = out["vertices"], out["joints"]
         if self.joint_mapper is not None:
-            joints = (self.joint_mapper(joints=joints, vertices=vertices) if self.MAPPER_TAKES_VERTICES
-                      else self.joint_mapper(joints))
+            joints = (
+                self.joint_mapper(joints=joints, vertices=vertices)
+                if self.MAPPER_TAKES_VERTICES
+                else self.joint_mapper(joints)
+            )
         transl = out["transl"]
         if transl is not None:  # the engine translated the vertices already
             joints = joints + transl[:, None]
-        fields = {"vertices": vertices, "joints": joints, "betas": params.get("betas", out["betas"]),
-                  "transl": transl, "full_pose": out["full_pose"] if return_full_pose else None}
+        fields = {
+            "vertices": vertices,
+            "joints": joints,
+            "betas": params.get("betas", out["betas"]),
+            "transl": transl,
+            "full_pose": out["full_pose"] if return_full_pose else None,
+        }
         for block in self.SPEC.pose_blocks:
             fields[block.name] = out[block.name]
         if self.SPEC.has_expression:
@@ -331,8 +406,13 @@ class BodyModule(nn.Module):
         rows are equal (e.g. untouched zeros); otherwise the mismatch is an error naming it.
         """
         explicit = {k: v for k, v in given.items() if v is not None}
-        batch = batch_of({k: (v if v.ndim > 1 else v[None]) for k, v in explicit.items()
-                          if not (k in {b.name for b in self.SPEC.pose_blocks} and not use_pose_defaults)})
+        batch = batch_of(
+            {
+                k: (v if v.ndim > 1 else v[None])
+                for k, v in explicit.items()
+                if not (k in {b.name for b in self.SPEC.pose_blocks} and not use_pose_defaults)
+            }
+        )
         params = dict(given)
         for key, value in given.items():
             if value is not None:
@@ -345,9 +425,11 @@ class BodyModule(nn.Module):
                 if bool(torch.all(default == default[:1])):
                     default = default[:1]
                 else:
-                    raise ShapeError(f"{key}: the module's parameter has batch size {default.shape[0]} "
-                                     f"(batch_size at construction), but this call has batch size {batch}; "
-                                     f"pass {key} explicitly")
+                    raise ShapeError(
+                        f"{key}: the module's parameter has batch size {default.shape[0]} "
+                        f"(batch_size at construction), but this call has batch size {batch}; "
+                        f"pass {key} explicitly"
+                    )
             params[key] = default
         return params
 
@@ -426,11 +508,17 @@ class MANO(BodyModule):
         data = self.setup.data
         fixed = np.array(data.shapedirs)
         fixed[:, 0, :] *= -1
-        self.setup = ModelSetup.build(data.replace(shapedirs=fixed), owner="MANO", use_pca=self.use_pca,
-                                      num_pca_comps=self.num_pca_comps, flat_hand_mean=self.flat_hand_mean,
-                                      num_betas=self.num_betas)
-        arrays = self.setup.body_arrays(lambda a: torch.as_tensor(a, dtype=self.v_template.dtype,
-                                                                   device=self.v_template.device))
+        self.setup = ModelSetup.build(
+            data.replace(shapedirs=fixed),
+            owner="MANO",
+            use_pca=self.use_pca,
+            num_pca_comps=self.num_pca_comps,
+            flat_hand_mean=self.flat_hand_mean,
+            num_betas=self.num_betas,
+        )
+        arrays = self.setup.body_arrays(
+            lambda a: torch.as_tensor(a, dtype=self.v_template.dtype, device=self.v_template.device)
+        )
         for field in _ENGINE_FIELDS:
             getattr(self, f"_engine_{field}").copy_(getattr(arrays, field))
 
@@ -439,8 +527,19 @@ class FLAME(BodyModule):
     """FLAME head (5 joints; outputs 56, or 73 with the face contour)."""
 
     SPEC = FLAME_SPEC
-    FORWARD_ARGS = ("betas", "global_orient", "neck_pose", "transl", "expression", "jaw_pose", "leye_pose",
-                    "reye_pose", "return_verts", "return_full_pose", "pose2rot")
+    FORWARD_ARGS = (
+        "betas",
+        "global_orient",
+        "neck_pose",
+        "transl",
+        "expression",
+        "jaw_pose",
+        "leye_pose",
+        "reye_pose",
+        "return_verts",
+        "return_full_pose",
+        "pose2rot",
+    )
     OUTPUT = FLAMEOutput
     MAPPER_TAKES_VERTICES = True
     NUM_JOINTS = 5
@@ -471,8 +570,14 @@ SMPLXLayer = _layer(SMPLX, "SMPL-X taking rotation matrices (B, J, 3, 3) and hol
 MANOLayer = _layer(MANO, "MANO taking rotation matrices (B, J, 3, 3) and holding no parameters.")
 FLAMELayer = _layer(FLAME, "FLAME taking rotation matrices (B, J, 3, 3) and holding no parameters.")
 
-_CLASSES = {"smpl": (SMPL, SMPLLayer), "smplh": (SMPLH, SMPLHLayer), "smplx": (SMPLX, SMPLXLayer),
-            "mano": (MANO, MANOLayer), "flame": (FLAME, FLAMELayer), "open": (OpenModel, None)}
+_CLASSES = {
+    "smpl": (SMPL, SMPLLayer),
+    "smplh": (SMPLH, SMPLHLayer),
+    "smplx": (SMPLX, SMPLXLayer),
+    "mano": (MANO, MANOLayer),
+    "flame": (FLAME, FLAMELayer),
+    "open": (OpenModel, None),
+}
 
 
 def _resolve(model_path: str | Path | None, model_type: str | None, layer: bool, kwargs: dict) -> BodyModule:
