@@ -105,7 +105,7 @@ class Gemm:
         if kind == "onednn":
             import torch
 
-            from smplcore.engine import gemm
+            from smplcore.engine.kernels import gemm
 
             self.a, self.packed = torch.from_numpy(a), gemm.pack(torch.from_numpy(b))
         elif kind.startswith("torch"):
@@ -127,13 +127,13 @@ class Gemm:
         """The kinds this machine has (``onednn`` only where smplcore packs for oneDNN)."""
         import torch
 
-        from smplcore.engine import gemm
+        from smplcore.engine.kernels import gemm
 
         return ("torch", "torch-out", "numpy") + (("onednn",) if gemm.available(torch.zeros(1)) else ())
 
     def run(self) -> Any:
         if self.packed is not None:
-            from smplcore.engine import gemm
+            from smplcore.engine.kernels import gemm
 
             return gemm.product(self.a, self.packed)
         if self.out is not None:

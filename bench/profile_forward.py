@@ -40,11 +40,11 @@ def timeit(fn, repeats: int) -> float:
 
 def stages(model, x: dict, repeats: int) -> tuple[list[tuple[str, float]], list[tuple[str, float]]]:
     """Time each stage of the no-grad forward alone, on the module's own arrays."""
-    from smplcore.engine import blocked
     from smplcore.engine import body as engine
+    from smplcore.engine.kernels import blocked
     from smplcore.engine.rotations import pose_features, rodrigues
 
-    arrays = model._engine_arrays()
+    arrays = model.source.fast_arrays()
     spec = model.setup.spec
     order = [b.name for b in spec.pose_blocks]
     batch = x["betas"].shape[0]

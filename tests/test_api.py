@@ -159,7 +159,7 @@ def test_more_betas_than_the_file_holds_warns_and_uses_what_it_holds(fake_models
 def test_wrong_shapes_name_the_argument(smplx_model):
     with pytest.raises(ShapeError, match=r"betas: expected shape \(B, <=10\), got \(1, 11\)"):
         smplx_model(betas=torch.zeros(1, 11))
-    with pytest.raises(ShapeError, match=r"body_pose: expected shape \(B, 63\), got \(2, 69\)"):
+    with pytest.raises(ShapeError, match=r"body_pose: expected shape \(B, 63\) or \(B, 21, 3\), got \(2, 69\)"):
         smplx_model(body_pose=torch.zeros(2, 69))
     with pytest.raises(ShapeError, match="body_pose: batch size 2 does not match the batch size 3"):
         smplx_model(body_pose=torch.zeros(2, 63), global_orient=torch.zeros(3, 3))

@@ -169,7 +169,8 @@ def _random_params(model, batch: int, seed: int, grad: bool = False) -> dict:
 def test_vertex_blocked_inference_equals_the_plain_pass(fake_models, monkeypatch, key, model_type, options, batch):
     """The no-grad path (mesh cut into vertex blocks, joints per block) equals the autograd path."""
     import smplcore
-    from smplcore.engine import backend, blocked
+    from smplcore.engine import backend
+    from smplcore.engine.kernels import blocked
 
     assert (batch <= backend.SMALL_BATCH) == (batch == 8)
     monkeypatch.setattr(blocked, "_PLANE_VALUES", batch * 100)  # blocks of 100 vertices
@@ -177,7 +178,7 @@ def test_vertex_blocked_inference_equals_the_plain_pass(fake_models, monkeypatch
     monkeypatch.setattr(blocked, "_APPLY_VALUES", 3 * 100)  # skinned 3 bodies at a time
     model = smplcore.create(fake_models[key], **options)
     num_verts = model.v_template.shape[0]
-    sizes = [b.stop - b.start for b in model._engine_arrays().vertex_blocks(blocked.block_size(batch, num_verts))]
+    sizes = [b.stop - b.start for b in model.source.fast_arrays().vertex_blocks(blocked.block_size(batch, num_verts))]
     assert len(sizes) > 5 and sum(sizes) == num_verts
     params = _random_params(model, batch, seed=3)
     with torch.no_grad():
@@ -193,7 +194,7 @@ def test_vertex_blocked_inference_equals_the_plain_pass(fake_models, monkeypatch
 
 
 def test_vertex_blocks_hold_exactly_the_nonzero_weights():
-    from smplcore.engine.blocked import vertex_blocks
+    from smplcore.engine.kernels.blocked import vertex_blocks
 
     rng = np.random.default_rng(0)
     weights_t = np.where(rng.random((7, 50)) < 0.2, rng.random((7, 50)), 0.0)
@@ -209,8 +210,8 @@ def test_vertex_blocks_hold_exactly_the_nonzero_weights():
 
 
 def test_skinning_autograd_node_passes_gradcheck(monkeypatch):
-    from smplcore.engine import skin_autograd
-    from smplcore.engine.blocked import vertex_blocks
+    from smplcore.engine.kernels import skin_autograd
+    from smplcore.engine.kernels.blocked import vertex_blocks
     from smplcore.engine.skeleton import skin
 
     monkeypatch.setattr(skin_autograd, "_CHUNK_VALUES", 8)  # 2 bodies per chunk over blocks of 4 vertices
@@ -228,7 +229,7 @@ def test_skinning_autograd_node_passes_gradcheck(monkeypatch):
 
 
 def _onednn_or_skip():
-    from smplcore.engine import gemm
+    from smplcore.engine.kernels import gemm
 
     if not gemm.available(torch.zeros(1)):
         pytest.skip("this torch build has no oneDNN: nothing is packed")
@@ -255,11 +256,11 @@ def test_packed_products_equal_plain_products(fake_models, monkeypatch, key, opt
         a = plain(**params)
         monkeypatch.delenv("SMPLCORE_ONEDNN")
     assert (a.vertices - b.vertices).abs().max() < 1e-5 and (a.joints - b.joints).abs().max() < 1e-5
-    from smplcore.engine import blocked
+    from smplcore.engine.kernels import blocked
 
-    arrays = packed._engine_arrays()
+    arrays = packed.source.fast_arrays()
     size = blocked.block_size(batch, arrays.weights_t.shape[1])
-    assert all(blk.packed_blend is None for blk in plain._engine_arrays().vertex_blocks(size))
+    assert all(blk.packed_blend is None for blk in plain.source.fast_arrays().vertex_blocks(size))
     blocks = arrays.vertex_blocks(size)
     assert all(blk.packed_blend is not None and blk.packed_weights is not None for blk in blocks)
     assert (len(blocks) > 1) == (batch == 600)
@@ -280,7 +281,7 @@ def test_packed_products_equal_plain_products(fake_models, monkeypatch, key, opt
 
 
 def test_packed_product_backward_is_the_transposed_product():
-    from smplcore.engine import gemm
+    from smplcore.engine.kernels import gemm
 
     _onednn_or_skip()
     gen = torch.Generator().manual_seed(1)

@@ -59,9 +59,9 @@ def __getattr__(name: str) -> Any:
 
         return importlib.import_module(f"smplcore.{name}")
     if name in _TORCH_NAMES:
-        from smplcore.torch import models
+        import smplcore.torch as torch_front_end
 
-        return getattr(models, name)
+        return getattr(torch_front_end, name)
     raise AttributeError(f"module 'smplcore' has no attribute {name!r}")
 
 

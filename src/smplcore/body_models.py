@@ -1,5 +1,6 @@
 """smplx's ``body_models`` module: the model classes, ``create``, ``build_layer`` and output classes."""
 
+from smplcore.torch.factory import build_layer, create  # noqa: F401
 from smplcore.torch.models import (  # noqa: F401
     FLAME,
     MANO,
@@ -11,8 +12,6 @@ from smplcore.torch.models import (  # noqa: F401
     SMPLHLayer,
     SMPLLayer,
     SMPLXLayer,
-    build_layer,
-    create,
 )
 from smplcore.torch.outputs import (  # noqa: F401
     FLAMEOutput,

@@ -8,9 +8,11 @@ from typing import Any
 
 import numpy as np
 
+from smplcore.engine.kernels.select import check_kernel
+from smplcore.frontend import SETUP_OPTIONS, ModelSetup, SetupArrays, evaluate, warn_once
+from smplcore.frontend.inputs import rows
 from smplcore.io.locate import read_model
 from smplcore.io.model_data import ModelData
-from smplcore.model_setup import ModelSetup, evaluate, warn_once
 
 
 @dataclass
@@ -45,6 +47,8 @@ class BodyModel:
     use_face_contour, use_hands, use_feet_keypoints, age, kid_template_path, is_rhand :
         as in smplx.
     dtype : float32 (default) or float64.
+    kernel : ``"auto"`` (default), ``"blocked"`` or ``"reference"`` (the plain forward of
+        :mod:`smplcore.engine.reference`); see :mod:`smplcore.engine.kernels`.
 
     Examples
     --------
@@ -64,32 +68,26 @@ class BodyModel:
         dtype: Any = np.float32,
         is_rhand: bool = True,
         data: ModelData | None = None,
+        kernel: str = "auto",
         **options: Any,
     ) -> None:
         if data is None:
             data = read_model(model_path, model_type, gender=gender, ext=ext, is_rhand=is_rhand)
-        known = {
-            "num_betas",
-            "num_expression_coeffs",
-            "use_pca",
-            "num_pca_comps",
-            "flat_hand_mean",
-            "use_face_contour",
-            "use_hands",
-            "use_feet_keypoints",
-            "vertex_ids",
-            "age",
-            "kid_template_path",
-            "v_template",
-        }
+        known = set(SETUP_OPTIONS)
         for name in sorted(set(options) - known):
             warn_once("BodyModel", f"BodyModel: ignoring unknown keyword argument {name!r}", key=name)
         self.dtype = np.dtype(dtype)
         if self.dtype not in (np.float32, np.float64):
             raise ValueError(f"dtype: expected float32 or float64, got {self.dtype}")
         self.setup = ModelSetup.build(data, owner="BodyModel", **{k: v for k, v in options.items() if k in known})
-        self.arrays = self.setup.body_arrays(lambda a: np.ascontiguousarray(a, dtype=self.dtype))
+        self.kernel = check_kernel(kernel)
+        self.source = SetupArrays(self.setup, lambda a: np.ascontiguousarray(a, dtype=self.dtype))
         self.faces = np.asarray(data.faces)
+
+    @property
+    def arrays(self) -> Any:
+        """The engine's arrays (:class:`smplcore.engine.BodyArrays`) in this model's dtype."""
+        return self.source.fast_arrays()
 
     @property
     def model_type(self) -> str:
@@ -134,7 +132,6 @@ class BodyModel:
         ``betas`` / ``expression`` are 1-D (or (1, n)); narrower than the model's count is zero-padded.
         """
         from smplcore.engine import body as engine
-        from smplcore.model_setup import _rows
 
         coeffs = []
         for name, value, width in (
@@ -144,7 +141,7 @@ class BodyModel:
             if name == "expression" and not self.setup.spec.has_expression:
                 continue
             value = np.zeros((1, width), self.dtype) if value is None else np.asarray(value, self.dtype)
-            coeffs.append(_rows(name, value, 1, width, allow_narrower=True))
+            coeffs.append(rows(name, value, 1, width, allow_narrower=True))
         c = np.concatenate(coeffs, axis=1)
         return engine.shaped_vertices(c, self.arrays)[0], engine.rest_joints(c, self.arrays)[0]
 
@@ -164,17 +161,22 @@ class BodyModel:
         for name in sorted(set(params) - allowed):
             warn_once("BodyModel.__call__", f"BodyModel: ignoring unknown keyword argument {name!r}", key=name)
         arrays = {k: None if v is None else np.asarray(v, dtype=self.dtype) for k, v in params.items() if k in allowed}
-        out = evaluate(self.setup, self.arrays, arrays, rotation_matrices=not pose2rot, vertices=return_verts)
-        verts, joints, transl = out["vertices"], out["joints"], out["transl"]
-        if transl is not None:  # the engine translated the vertices already
-            joints = joints + transl[:, None]
+        out = evaluate(
+            self.setup,
+            self.source,
+            arrays,
+            rotation_matrices=not pose2rot,
+            vertices=return_verts,
+            like=np.zeros((1, 1), self.dtype),
+            kernel=self.kernel,
+        )
         return BodyOutput(
-            vertices=verts,
-            joints=joints,
-            full_pose=out["full_pose"],
-            rotmats=out["rotmats"],
-            betas=out["betas"],
-            expression=out["expression"],
-            transl=transl,
-            pose={name: out[name] for name in self.pose_blocks},
+            vertices=out.vertices,
+            joints=out.joints,
+            full_pose=out.full_pose,
+            rotmats=out.rotmats,
+            betas=out.betas,
+            expression=out.expression,
+            transl=out.transl,
+            pose=dict(out.pose),
         )

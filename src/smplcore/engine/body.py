@@ -15,15 +15,13 @@ from typing import Any
 
 import numpy as np
 
-from smplcore.engine import blocked, gemm
 from smplcore.engine.backend import array_identity, for_cache, from_numpy, host_numpy, index, is_torch, namespace
-from smplcore.engine.blocked import vertex_columns
+from smplcore.engine.kernels import blocked, gemm
+from smplcore.engine.kernels.blocked import vertex_columns
 from smplcore.engine.rotations import pose_features
 from smplcore.engine.skeleton import (
     KinematicTree,
     chain,
-    records_gradients,
-    skin,
     skinning_transforms,
     with_translation,
 )
@@ -190,7 +188,13 @@ def rest_joints(coeffs: Any, arrays: BodyArrays) -> Any:
 
 
 def forward(
-    coeffs: Any, rotmats: Any, arrays: BodyArrays, *, vertices: bool = True, translation: Any = None
+    coeffs: Any,
+    rotmats: Any,
+    arrays: BodyArrays,
+    *,
+    vertices: bool = True,
+    translation: Any = None,
+    kernel: str = "blocked",
 ) -> tuple[Any | None, Any, Any]:
     """Posed body.
 
@@ -218,16 +222,25 @@ def forward(
         return None, posed_joints, transforms
     feats = blend_features(coeffs, rotmats, arrays)
     verts = _skin_from_basis(
-        feats, transforms, arrays.blend_basis, arrays.weights_t, arrays.vertex_blocks, translation, arrays.packed_blend
+        feats,
+        transforms,
+        arrays.blend_basis,
+        arrays.weights_t,
+        arrays.vertex_blocks,
+        translation,
+        kernel,
+        arrays.packed_blend,
     )
     return verts, posed_joints, transforms
 
 
-def posed_vertex_subset(coeffs: Any, rotmats: Any, transforms: Any, arrays: BodyArrays, ids: np.ndarray) -> Any:
+def posed_vertex_subset(
+    coeffs: Any, rotmats: Any, transforms: Any, arrays: BodyArrays, ids: np.ndarray, kernel: str = "blocked"
+) -> Any:
     """(B, n, 3) posed vertices ``ids`` only (untranslated), from :func:`forward`'s ``transforms``."""
     basis, weights_t, blocks = arrays.vertex_subset(ids)
     feats = blend_features(coeffs, rotmats, arrays)
-    return _skin_from_basis(feats, transforms, basis, weights_t, lambda size: blocks, None)
+    return _skin_from_basis(feats, transforms, basis, weights_t, lambda size: blocks, None, kernel)
 
 
 # Vertices per block under autograd: small enough that a block uses a handful of joints; up to
@@ -243,14 +256,15 @@ def _skin_from_basis(
     weights_t: Any,
     blocks: Callable[[int], Any],
     translation: Any,
+    kernel: str,
     packed_blend: Callable[[], Any] | None = None,
 ) -> Any:
-    """Blend ``feats @ basis`` and skin it: vertex-blocked without autograd; with it, one autograd
-    node for the skinning (torch) unless the weights themselves are being trained. ``blocks(size)``
-    gives the vertex blocks of about ``size`` vertices; ``packed_blend()`` the basis packed for
+    """Blend ``feats @ basis`` and skin it: vertex-blocked (kernel ``blocked``, no autograd graph), or
+    with one autograd node for the skinning (kernel ``autograd``, torch). ``blocks(size)`` gives the
+    vertex blocks of about ``size`` vertices; ``packed_blend()`` the basis packed for
     :func:`gemm.product_with_gradients` (or None)."""
     transforms = with_translation(transforms, translation)
-    if not records_gradients(feats, transforms, basis, weights_t):
+    if kernel == "blocked":
         size = blocked.block_size(feats.shape[0], weights_t.shape[1])
         return blocked.posed_vertices(feats, transforms, basis, blocks(size))
     packed = None
@@ -260,9 +274,7 @@ def _skin_from_basis(
         v = gemm.product_with_gradients(feats, *packed).view(feats.shape[0], 3, -1)
     else:
         v = _blend(feats, basis)
-    if not weights_t.requires_grad:
-        from smplcore.engine.skin_autograd import skin_with_gradients
+    from smplcore.engine.kernels.skin_autograd import skin_with_gradients
 
-        few = feats.shape[0] <= _GRAD_FEW_BODIES  # per-op overhead dominates: one block
-        return skin_with_gradients(v, transforms, blocks(weights_t.shape[1] if few else _GRAD_BLOCK))
-    return skin(v, transforms, weights_t)
+    few = feats.shape[0] <= _GRAD_FEW_BODIES  # per-op overhead dominates: one block
+    return skin_with_gradients(v, transforms, blocks(weights_t.shape[1] if few else _GRAD_BLOCK))

@@ -45,6 +45,7 @@ class ModelData:
     extra_joint_names, extra_joint_vertex_ids : named vertices used as extra joints (e.g. nose,
         toes, fingertips) when the file brings its own (the open model), else empty.
     source : the file the data was read from (for messages), or a description.
+    faces_dtype : the integer dtype of the file's faces (``faces`` itself is always int64).
     """
 
     model_type: str
@@ -69,6 +70,7 @@ class ModelData:
     extra_joint_names: tuple[str, ...] = ()
     extra_joint_vertex_ids: tuple[int, ...] = ()
     source: str = field(default="<memory>")
+    faces_dtype: str = "int64"
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):

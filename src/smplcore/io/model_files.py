@@ -318,6 +318,7 @@ def _from_official(path: Path, raw: dict[str, Any], model_type: str | None, gend
         gender=gender,
         v_template=v_template,
         faces=faces.astype(np.int64),
+        faces_dtype=str(faces.dtype),
         shapedirs=shapedirs,
         posedirs=posedirs,
         J_regressor=J_regressor,
@@ -444,3 +445,7 @@ def _from_smplcore_npz(path: Path, raw: dict[str, Any], model_type: str | None) 
         extra_joint_vertex_ids=extra_ids,
         **arrays,
     )
+
+
+#: The reader of official arrays (a dict of the file's keys, e.g. smplx's ``data_struct``), for the front ends.
+from_official_arrays = _from_official

@@ -113,6 +113,7 @@ class LoadedModel:
     gender: str
     backend: str
     torch_arrays: Any = None
+    torch_source: Any = None  # smplcore.frontend.SetupArrays over torch tensors
 
     @property
     def model_type(self) -> str:
@@ -192,9 +193,12 @@ class ModelCache:
         if backend == "torch":
             import torch
 
-            loaded.torch_arrays = model.setup.body_arrays(
-                lambda a: torch.from_numpy(np.array(a, dtype=model.dtype, order="C", copy=True))
+            from smplcore.frontend import SetupArrays
+
+            loaded.torch_source = SetupArrays(
+                model.setup, lambda a: torch.from_numpy(np.array(a, dtype=model.dtype, order="C", copy=True))
             )
+            loaded.torch_arrays = loaded.torch_source.fast_arrays()
         self.models[key] = loaded
         return loaded
 
@@ -275,14 +279,14 @@ class Evaluator:
             return out.joints, out.vertices
         import torch
 
-        from smplcore.model_setup import evaluate
+        from smplcore.frontend import evaluate
 
         with torch.inference_mode():
             tensors = {k: torch.from_numpy(v) for k, v in params.items()}
-            out = evaluate(loaded.model.setup, loaded.torch_arrays, tensors, vertices=vertices)
-            shift = out["transl"][:, None] if out["transl"] is not None else 0
-            joints = (out["joints"] + shift).numpy()
-            verts = None if out["vertices"] is None else (out["vertices"] + shift).numpy()
+            out = evaluate(loaded.model.setup, loaded.torch_source, tensors, vertices=vertices)
+            # an Evaluation's vertices and joints are both translated already
+            joints = out.joints.numpy()
+            verts = None if out.vertices is None else out.vertices.numpy()
         return joints, verts
 
 

@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import torch
 
-from smplcore.engine import gemm
-from smplcore.engine.blocked import apply_blended, blended_transforms, block_rows, empty, per_joint_rows
+from smplcore.engine.kernels import gemm
+from smplcore.engine.kernels.blocked import apply_blended, blended_transforms, block_rows, empty, per_joint_rows
 
 # Bodies per chunk: the chunk's bodies × 12 × block per-vertex values stay within a few MB.
 _CHUNK_VALUES = 1 << 18

@@ -1,11 +1,11 @@
-"""A packed product (:mod:`smplcore.engine.gemm`) as an autograd node (torch only; imported when
+"""A packed product (:mod:`smplcore.engine.kernels.gemm`) as an autograd node (torch only; imported when
 gradients are recorded)."""
 
 from __future__ import annotations
 
 import torch
 
-from smplcore.engine.gemm import product
+from smplcore.engine.kernels.gemm import product
 
 
 class _PackedProduct(torch.autograd.Function):

@@ -1,9 +1,6 @@
-"""What both front ends share: model options resolved once, and one evaluation over any namespace.
-
-:class:`ModelSetup` turns a :class:`ModelData` and smplx's constructor options (``num_betas``,
-``use_pca``, ``flat_hand_mean``, ``use_face_contour``, ...) into plain NumPy constants.
-:func:`evaluate` takes keyword parameters in NumPy or torch and returns the outputs; the torch
-modules and the NumPy :class:`~smplcore.numpy_model.BodyModel` are thin layers over these two.
+"""A model with its options applied: :class:`ModelSetup` turns a :class:`ModelData` and smplx's
+constructor options (``num_betas``, ``use_pca``, ``flat_hand_mean``, ``use_face_contour``, ...) into
+plain NumPy constants, the same for both front ends.
 """
 
 from __future__ import annotations
@@ -16,16 +13,29 @@ from typing import Any
 import numpy as np
 
 from smplcore.engine import body as engine
-from smplcore.engine.backend import eye, for_cache, from_numpy, host_numpy, index, is_torch, namespace
-from smplcore.engine.landmarks import barycentric_points, contour_rows
-from smplcore.engine.rotations import rodrigues
-from smplcore.engine.skeleton import records_gradients
+from smplcore.engine.backend import for_cache, index, namespace
 from smplcore.errors import ModelFileError, ShapeError
 from smplcore.family import names
 from smplcore.family.specs import FamilySpec, extra_joint_vertex_ids, get_spec
 from smplcore.io.model_data import ModelData
 
 _warned: set[tuple[str, str]] = set()
+
+#: smplx's constructor options that set up a model (with their defaults), for both front ends.
+SETUP_OPTIONS: dict[str, Any] = {
+    "num_betas": 10,
+    "num_expression_coeffs": 10,
+    "use_pca": True,
+    "num_pca_comps": 6,
+    "flat_hand_mean": False,
+    "use_face_contour": False,
+    "use_hands": True,
+    "use_feet_keypoints": True,
+    "vertex_ids": None,
+    "age": "adult",
+    "kid_template_path": "",
+    "v_template": None,
+}
 
 
 def warn_once(owner: str, message: str, key: str | None = None) -> None:
@@ -272,156 +282,6 @@ def _with_kid_component(data: ModelData, shapedirs: np.ndarray, kid_template_pat
     return np.concatenate([shapedirs, (kid - data.v_template)[:, :, None]], axis=2)
 
 
-# --------------------------------------------------------------------------------------------------
-# Evaluation
-
-
-def batch_of(params: dict[str, Any]) -> int:
-    """The batch size of a call: the largest leading size among the given parameters."""
-    sizes = {name: value.shape[0] for name, value in params.items() if value is not None and value.ndim > 1}
-    batch = max(sizes.values(), default=1)
-    for name, size in sizes.items():
-        if size not in (1, batch):
-            raise ShapeError(
-                f"{name}: batch size {size} does not match the batch size {batch} of the other "
-                f"parameters (sizes: {sizes}); give 1 or {batch}"
-            )
-    return batch
-
-
-def _rows(name: str, value: Any, batch: int, width: int, *, allow_narrower: bool = False) -> Any:
-    """``value`` as (batch, width): 1-D becomes batch 1, batch 1 broadcasts, narrower coefficients pad."""
-    xp = namespace(value)
-    if value.ndim == 1:
-        value = value[None]
-    if value.ndim != 2:
-        value = value.reshape(value.shape[0], -1)
-    n = value.shape[1]
-    if n != width and not (allow_narrower and n < width):
-        expected = f"(B, {'<=' if allow_narrower else ''}{width})"
-        raise ShapeError(f"{name}: expected shape {expected}, got {tuple(value.shape)}")
-    if n < width:
-        pad = xp.zeros_like(value[:, :1]) * 0
-        value = xp.concat([value, xp.concat([pad] * (width - n), axis=1)], axis=1)
-    if value.shape[0] != batch:
-        value = xp.broadcast_to(value, (batch, width))
-    return value
-
-
-def _rotmat_rows(name: str, value: Any, batch: int, joints: int) -> Any:
-    """``value`` as (batch, joints, 3, 3) from (B, n, 3, 3), (B, 9 n) or, for one joint, (B, 3, 3)."""
-    xp = namespace(value)
-    if value.ndim == 3 and joints == 1 and tuple(value.shape[1:]) == (3, 3):
-        value = value[:, None]
-    elif value.ndim == 2 and value.shape[1] == 9 * joints:
-        value = value.reshape(value.shape[0], joints, 3, 3)
-    if value.ndim != 4 or tuple(value.shape[1:]) != (joints, 3, 3):
-        raise ShapeError(f"{name}: expected rotation matrices of shape (B, {joints}, 3, 3), got {tuple(value.shape)}")
-    if value.shape[0] != batch:
-        value = xp.broadcast_to(value, (batch, joints, 3, 3))
-    return value
-
-
-def evaluate(
-    setup: ModelSetup,
-    arrays: engine.BodyArrays,
-    params: dict[str, Any],
-    *,
-    rotation_matrices: bool = False,
-    vertices: bool = True,
-    like: Any = None,
-) -> dict[str, Any]:
-    """Run the model.
-
-    Parameters
-    ----------
-    setup : the model with its options.
-    arrays : ``setup.body_arrays()`` in the namespace of the parameters.
-    params : ``betas``, ``expression``, ``transl`` and one entry per pose block; None entries are
-        zero (identity rotations). Axis-angle blocks are (B, 3 n) or (B, n, 3); PCA hand blocks
-        (B, C); with ``rotation_matrices`` every block is (B, n, 3, 3).
-    rotation_matrices : the pose blocks are rotation matrices (no PCA, no mean pose added).
-    vertices : build the mesh; without it only the joints (extra joints and landmarks included)
-        are computed, from the few vertices they need.
-    like : an array giving namespace, dtype and device when every parameter is None.
-
-    Returns
-    -------
-    dict with ``vertices`` (B, V, 3) (translated) or None, ``joints`` (B, J', 3) before translation, ``transl``
-    (B, 3) or None, ``full_pose`` ((B, 3 J) axis-angle or (B, J, 3, 3) matrices), ``betas``,
-    ``expression``, ``rotmats`` and the pose blocks as used (hand PCA turned into axis-angle).
-    """
-    spec = setup.spec
-    given = {k: v for k, v in params.items() if v is not None}
-    ref = next(iter(given.values()), like if like is not None else arrays.joint_basis)
-    xp = namespace(ref)
-    batch = batch_of({k: (v if v.ndim > 1 else v[None]) for k, v in given.items()})
-    zeros = xp.zeros_like(arrays.joint_basis[:1, :1])  # (1, 1) in the model's dtype/device
-
-    def coefficients(name: str, width: int) -> Any:
-        if width == 0:
-            return xp.broadcast_to(zeros[:, :0], (batch, 0))
-        value = given.get(name)
-        if value is None:
-            return xp.broadcast_to(zeros, (batch, width))
-        return _rows(name, value, batch, width, allow_narrower=True)
-
-    betas = coefficients("betas", setup.num_betas)
-    expression = coefficients("expression", setup.num_expression_coeffs) if spec.has_expression else None
-    coeffs = betas if expression is None else xp.concat([betas, expression], axis=1)
-
-    out: dict[str, Any] = {"betas": betas, "expression": expression}
-    if rotation_matrices:
-        identity = eye(3, zeros)
-        blocks = []
-        for block in spec.pose_blocks:
-            value = given.get(block.name)
-            if value is None:
-                value = xp.broadcast_to(identity, (batch, block.num_joints, 3, 3))
-            else:
-                value = _rotmat_rows(block.name, value, batch, block.num_joints)
-            out[block.name] = value
-            blocks.append(value)
-        rotmats = xp.concat(blocks, axis=1)
-        out["full_pose"] = rotmats
-    else:
-        blocks = []
-        for block in spec.pose_blocks:
-            value = given.get(block.name)
-            if value is None:
-                value = xp.broadcast_to(zeros, (batch, 3 * block.num_joints))
-            else:
-                value = _rows(block.name, value, batch, setup.pose_width(block.name))
-                if block.name in setup.hand_components:
-                    value = value @ setup.const(block.name, setup.hand_components[block.name], zeros)
-            out[block.name] = value
-            blocks.append(value)
-        full_pose = xp.concat(blocks, axis=1)
-        if setup.has_pose_mean:
-            full_pose = full_pose + setup.const("pose_mean", setup.pose_mean, zeros)
-        out["full_pose"] = full_pose
-        rotmats = _rodrigues(full_pose.reshape(batch, -1, 3))
-    out["rotmats"] = rotmats
-
-    transl = given.get("transl")
-    transl = None if transl is None else _rows("transl", transl, batch, 3)
-    verts, joints, transforms = engine.forward(coeffs, rotmats, arrays, vertices=vertices, translation=transl)
-    parts = [joints]
-    if setup.keypoints.ids.size:
-        parts += _keypoints(setup, arrays, coeffs, rotmats, transforms, verts, transl)
-    out["joints"] = xp.concat(parts, axis=1) if len(parts) > 1 else joints
-    out["vertices"] = verts
-    out["transl"] = transl
-    return out
-
-
-def _rodrigues(rotvec: Any) -> Any:
-    """Rotation matrices; for a small torch batch on the CPU without autograd, computed in NumPy
-    (the same formula, a quarter of the time there)."""
-    host = host_numpy(rotvec) if is_torch(rotvec) else None
-    return rodrigues(rotvec) if host is None else from_numpy(rodrigues(host))
-
-
 def _const(array: np.ndarray, like: Any) -> Any:
     """A NumPy constant in the namespace, dtype and device of ``like``."""
     if namespace(like) is np:
@@ -464,46 +324,3 @@ class Keypoints:
             inverse[n1:n2].reshape(corners.shape),
             inverse[n2:].reshape(contour_corners.shape),
         )
-
-
-def _keypoints(
-    setup: ModelSetup,
-    arrays: engine.BodyArrays,
-    coeffs: Any,
-    rotmats: Any,
-    transforms: Any,
-    verts: Any | None,
-    transl: Any | None,
-) -> list[Any]:
-    """Extra vertex joints, static landmarks and the dynamic contour, in smplx's order (untranslated)."""
-    kp, d = setup.keypoints, setup.data
-    if verts is None or records_gradients(verts):
-        # joints only, or under autograd (where reading them from the mesh would back-propagate a
-        # mesh-sized gradient): pose just the vertices the keypoints use
-        verts = _pose_vertex_subset(setup, coeffs, rotmats, transforms, arrays)
-        prefix = "local_"
-    else:
-        prefix = ""
-        if transl is not None:
-            verts = verts[:, setup.const("kp_rows", kp.ids, verts)] - transl[:, None]
-            prefix = "local_"
-    c = setup.const
-    out = []
-    if kp.extra.size:
-        out.append(verts[:, c(prefix + "extra", getattr(kp, prefix + "extra"), verts)])
-    if setup.spec.landmarks:
-        corners = c(prefix + "corners", getattr(kp, prefix + "corners"), verts)
-        out.append(barycentric_points(verts, corners, c("lmk_bary", d.lmk_bary_coords, verts)))
-        if setup.use_face_contour:
-            rows = contour_rows(rotmats, setup.neck_chain)
-            dyn_bary = c("dyn_bary", d.dynamic_lmk_bary_coords, verts)[rows]
-            contour = c(prefix + "contour_corners", getattr(kp, prefix + "contour_corners"), verts)
-            out.append(barycentric_points(verts, contour[rows], dyn_bary))
-    return out
-
-
-def _pose_vertex_subset(
-    setup: ModelSetup, coeffs: Any, rotmats: Any, transforms: Any, arrays: engine.BodyArrays
-) -> Any:
-    """(B, n, 3) posed keypoint vertices only (``setup.keypoints.ids``)."""
-    return engine.posed_vertex_subset(coeffs, rotmats, transforms, arrays, setup.keypoints.ids)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import os
 import sys
+import warnings
 from typing import Any
 
 from smplcore.engine.backend import is_torch
@@ -31,20 +32,53 @@ _ENV = "SMPLCORE_ONEDNN"
 # Above the products' outputs, below glibc's cap on the dynamic threshold (32 MiB on 64-bit).
 _NUDGE_BYTES = 24 << 20
 _malloc_nudged = False
+_checked: dict[str, bool] = {}
 
 
 def available(like: Any) -> bool:
-    """Whether :func:`pack` applies to matrices like ``like`` (a float32 CPU torch tensor, oneDNN present)."""
+    """Whether :func:`pack` applies to matrices like ``like`` (a float32 CPU torch tensor, oneDNN present
+    and checked to work)."""
     if not is_torch(like) or os.environ.get(_ENV, "1") == "0":
         return False
     torch = sys.modules["torch"]
-    return (
-        like.device.type == "cpu"
-        and like.dtype == torch.float32
-        and torch.backends.mkldnn.is_available()
-        and hasattr(torch.ops.mkldnn, "_linear_pointwise")
-        and hasattr(torch.ops.mkldnn, "_reorder_linear_weight")
-    )
+    return like.device.type == "cpu" and like.dtype == torch.float32 and _onednn_works()
+
+
+def _onednn_works() -> bool:
+    """Whether torch's private oneDNN ops exist and compute a product right: checked once per process on a
+    small matrix; where they fail, one warning and the plain products from then on."""
+    if "onednn" not in _checked:
+        torch = sys.modules["torch"]
+        ops = getattr(torch.ops, "mkldnn", None)
+        ok = False
+        reason = None  # a build without oneDNN: nothing to warn about
+        if (
+            torch.backends.mkldnn.is_available()
+            and ops is not None
+            and hasattr(ops, "_linear_pointwise")
+            and hasattr(ops, "_reorder_linear_weight")
+        ):
+            try:
+                a = torch.arange(12, dtype=torch.float32).reshape(3, 4) / 7
+                b = torch.arange(20, dtype=torch.float32).reshape(4, 5) / 3
+                with torch.no_grad():
+                    packed = ops._reorder_linear_weight(b.T.contiguous())
+                    ok = bool(
+                        torch.allclose(
+                            ops._linear_pointwise(a, packed, None, "none", [], ""), a @ b, rtol=1e-5, atol=1e-5
+                        )
+                    )
+                reason = "torch's oneDNN packed product gave a wrong result on a check"
+            except Exception as exc:  # any failure of a private op means: don't use it
+                reason = f"torch's oneDNN packed product failed on a check ({type(exc).__name__}: {exc})"
+        if not ok and reason is not None:
+            warnings.warn(
+                f"smplcore: {reason}; using plain torch.mm products ({_ENV}=0 skips the check)",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+        _checked["onednn"] = ok
+    return _checked["onednn"]
 
 
 def pack(matrix: Any) -> Any | None:
@@ -68,6 +102,6 @@ def product(a: Any, packed: Any) -> Any:
 def product_with_gradients(a: Any, packed: Any, packed_t: Any) -> Any:
     """:func:`product` as an autograd node, differentiable in ``a``: ``packed_t`` is the matrix's
     transpose, packed (the backward is ``grad @ matrix.T``)."""
-    from smplcore.engine.gemm_autograd import packed_product
+    from smplcore.engine.kernels.gemm_autograd import packed_product
 
     return packed_product(a, packed, packed_t)

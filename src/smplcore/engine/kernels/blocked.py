@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from smplcore.engine import gemm
 from smplcore.engine.backend import index, is_torch
+from smplcore.engine.kernels import gemm
 
 # Values per (B × block) plane: blocks are sized so one block's temporaries (15 planes) stay in
 # the last-level cache. 2**19 measured best for SMPL and SMPL-X at B = 512 (bench/profile_forward.py).

@@ -1,0 +1,75 @@
+"""Which kernel runs a forward call: decided here, from the arrays and the caller's request."""
+
+from __future__ import annotations
+
+import sys
+from typing import Any
+
+from smplcore.engine.backend import is_torch
+
+#: The kernels a caller may ask for (``"auto"`` lets :func:`select` choose).
+KERNELS = ("auto", "blocked", "autograd", "reference")
+
+
+def check_kernel(kernel: str) -> str:
+    """``kernel`` if it names a kernel, else a ValueError naming the choices."""
+    if kernel not in KERNELS:
+        raise ValueError(f"kernel: expected one of {', '.join(map(repr, KERNELS))}, got {kernel!r}")
+    return kernel
+
+
+def traced() -> bool:
+    """Whether torch is tracing the call (``torch.compile``, ``torch.export``) or running it under a
+    ``torch.func`` transform (``vmap``, ``grad``, ``jacrev``, ...): then only plain tensor code may run."""
+    torch = sys.modules.get("torch")
+    if torch is None:
+        return False
+    compiler = getattr(torch, "compiler", None)
+    if compiler is not None and (compiler.is_compiling() or getattr(compiler, "is_exporting", lambda: False)()):
+        return True
+    functorch_active = getattr(torch._C, "_are_functorch_transforms_active", None)
+    return bool(functorch_active is not None and functorch_active())
+
+
+def select(kernel: str, like: Any, *, gradients: bool, trainable_model: bool = False) -> str:
+    """The kernel to run.
+
+    Parameters
+    ----------
+    kernel : ``"auto"`` or a forced kernel from :data:`KERNELS`.
+    like : an input array (its namespace, device and dtype decide).
+    gradients : whether autograd records this call.
+    trainable_model : whether the model's own arrays require gradients (only the reference
+        kernel differentiates with respect to them).
+
+    A forced kernel that cannot compute what was asked raises instead of running another one.
+    """
+    check_kernel(kernel)
+    plain_only = is_torch(like) and (traced() or like.device.type != "cpu" or not _cpu_float(like))
+    if kernel == "auto":
+        if plain_only or trainable_model:
+            return "reference"
+        return "autograd" if gradients else "blocked"
+    if kernel == "blocked" and gradients:
+        raise ValueError(
+            "kernel='blocked' records no gradients, but this call needs them; use kernel='autograd' "
+            "or 'auto', or call under torch.no_grad()"
+        )
+    if kernel == "autograd" and not is_torch(like):
+        raise ValueError("kernel='autograd' is for torch tensors; NumPy inputs run kernel='blocked' or 'reference'")
+    if kernel in ("blocked", "autograd") and plain_only:
+        raise ValueError(
+            f"kernel={kernel!r} runs on CPU float32/float64 tensors outside torch.compile, "
+            f"torch.export and torch.func; this call needs kernel='reference' (or 'auto')"
+        )
+    if kernel != "reference" and trainable_model:
+        raise ValueError(
+            f"kernel={kernel!r} does not differentiate with respect to the model's own arrays "
+            "(some require gradients); use kernel='reference' or 'auto'"
+        )
+    return kernel
+
+
+def _cpu_float(x: Any) -> bool:
+    torch = sys.modules["torch"]
+    return x.dtype in (torch.float32, torch.float64)

@@ -1,0 +1,262 @@
+"""One evaluation of a model, for both front ends: inputs in, a typed :class:`Evaluation` out.
+
+:func:`evaluate` turns keyword parameters (NumPy or torch) into the full pose (hand PCA and the mean
+pose applied), picks the kernel (:func:`smplcore.engine.kernels.select`), runs it and appends the
+extra vertex joints and face landmarks. The arrays come from an :class:`ArraySource`, which each
+front end provides (the torch modules from their buffers, so that edits of a buffer reach the output).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from smplcore.engine import body as engine
+from smplcore.engine import reference
+from smplcore.engine.backend import eye, from_numpy, host_numpy, is_torch, namespace
+from smplcore.engine.kernels.select import select
+from smplcore.engine.landmarks import barycentric_points, contour_rows
+from smplcore.engine.rotations import rodrigues
+from smplcore.engine.skeleton import records_gradients
+from smplcore.frontend.inputs import batch_of, rotmat_rows, rows
+from smplcore.frontend.setup import ModelSetup
+
+
+@dataclass(frozen=True)
+class PlainArrays:
+    """A model's arrays as the official files lay them out, for :mod:`smplcore.engine.reference`.
+
+    ``shapedirs`` (V, 3, K) holds the shape and then the expression columns; ``posedirs`` is
+    (9 (J - 1), 3 V) or None; ``parents`` a tuple of ints.
+    """
+
+    v_template: Any
+    shapedirs: Any
+    posedirs: Any | None
+    J_regressor: Any
+    parents: tuple[int, ...]
+    weights: Any
+
+
+class ArraySource(Protocol):
+    """Where :func:`evaluate` takes a model's arrays from, in the namespace/dtype/device of ``like``."""
+
+    def fast_arrays(self) -> engine.BodyArrays: ...
+
+    def plain_arrays(self) -> PlainArrays: ...
+
+    def constant(self, name: str, like: Any) -> Any: ...
+
+    def trainable(self) -> bool: ...
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """The outputs of one call. **Every position is translated** by ``transl`` (when one was given).
+
+    Attributes
+    ----------
+    vertices : (B, V, 3), or None for a joints-only call.
+    joints : (B, J', 3): the J skeleton joints, then the extra vertex joints and face landmarks.
+    untranslated_joints : (B, J', 3) the same before translation (for smplx's ``joint_mapper``).
+    transl : (B, 3) or None.
+    full_pose : (B, 3 J) axis-angle (mean pose included), or (B, J, 3, 3) rotation matrices.
+    rotmats : (B, J, 3, 3) local joint rotations.
+    betas : (B, num_betas); expression : (B, num_expression_coeffs) or None.
+    pose : each pose block as used, (B, 3 n) axis-angle (hand PCA expanded) or (B, n, 3, 3).
+    kernel : the kernel that ran.
+    """
+
+    vertices: Any | None
+    joints: Any
+    untranslated_joints: Any
+    transl: Any | None
+    full_pose: Any
+    rotmats: Any
+    betas: Any
+    expression: Any | None
+    pose: dict[str, Any]
+    kernel: str
+
+
+def evaluate(
+    setup: ModelSetup,
+    source: ArraySource,
+    params: dict[str, Any],
+    *,
+    rotation_matrices: bool = False,
+    vertices: bool = True,
+    like: Any = None,
+    kernel: str = "auto",
+) -> Evaluation:
+    """Run the model.
+
+    Parameters
+    ----------
+    setup : the model with its options.
+    source : the model's arrays.
+    params : ``betas``, ``expression``, ``transl`` and one entry per pose block; None entries are
+        zero (identity rotations); see :mod:`smplcore.frontend.inputs` for the layouts.
+    rotation_matrices : the pose blocks are rotation matrices (no PCA, no mean pose added).
+    vertices : build the mesh; without it only the joints (extra joints and landmarks included).
+    like : an array giving namespace, dtype and device when every parameter is None.
+    kernel : ``"auto"`` or a kernel to force (:data:`smplcore.engine.kernels.KERNELS`).
+    """
+    spec = setup.spec
+    given = {k: v for k, v in params.items() if v is not None}
+    ref = next(iter(given.values()), like)
+    xp = namespace(ref)
+    batch = batch_of({k: (v if v.ndim > 1 else v[None]) for k, v in given.items()})
+    zeros = source.constant("zero", ref)  # (1, 1) in the model's dtype and device
+    chosen = select(kernel, zeros, gradients=_records(given.values()), trainable_model=source.trainable())
+
+    def coefficients(name: str, width: int) -> Any:
+        value = given.get(name)
+        if value is None or width == 0:
+            return xp.broadcast_to(zeros, (batch, width)) if width else xp.broadcast_to(zeros[:, :0], (batch, 0))
+        return rows(name, value, batch, width, allow_narrower=True)
+
+    betas = coefficients("betas", setup.num_betas)
+    expression = coefficients("expression", setup.num_expression_coeffs) if spec.has_expression else None
+    coeffs = betas if expression is None else xp.concat([betas, expression], axis=1)
+
+    pose: dict[str, Any] = {}
+    if rotation_matrices:
+        identity = eye(3, zeros)
+        for block in spec.pose_blocks:
+            value = given.get(block.name)
+            pose[block.name] = (
+                xp.broadcast_to(identity, (batch, block.num_joints, 3, 3))
+                if value is None
+                else rotmat_rows(block.name, value, batch, block.num_joints)
+            )
+        rotmats = full_pose = xp.concat(list(pose.values()), axis=1)
+    else:
+        for block in spec.pose_blocks:
+            value = given.get(block.name)
+            if value is None:
+                value = xp.broadcast_to(zeros, (batch, 3 * block.num_joints))
+            elif block.name in setup.hand_components:
+                value = rows(block.name, value, batch, setup.pose_width(block.name))
+                value = value @ source.constant(f"hand_components/{block.name}", zeros)
+            else:
+                value = rows(block.name, value, batch, 3 * block.num_joints, joints=block.num_joints)
+            pose[block.name] = value
+        full_pose = xp.concat(list(pose.values()), axis=1)
+        if setup.has_pose_mean:
+            full_pose = full_pose + source.constant("pose_mean", zeros)
+        rotvecs = full_pose.reshape(batch, -1, 3)
+        rotmats = reference.rodrigues(rotvecs) if chosen == "reference" else _rodrigues(rotvecs)
+
+    transl = given.get("transl")
+    transl = None if transl is None else rows("transl", transl, batch, 3)
+    if chosen == "reference":
+        verts, joints = _reference_forward(setup, source, coeffs, rotmats, zeros)
+    else:
+        verts, joints = _fast_forward(setup, source.fast_arrays(), coeffs, rotmats, vertices, transl, chosen)
+    if transl is not None:
+        shifted = joints + transl[:, None]
+        if chosen == "reference":
+            verts = verts + transl[:, None]
+    else:
+        shifted = joints
+    return Evaluation(
+        vertices=verts if vertices else None,
+        joints=shifted,
+        untranslated_joints=joints,
+        transl=transl,
+        full_pose=full_pose,
+        rotmats=rotmats,
+        betas=betas,
+        expression=expression,
+        pose=pose,
+        kernel=chosen,
+    )
+
+
+def _records(values: Any) -> bool:
+    values = list(values)
+    return bool(values) and records_gradients(*values)
+
+
+def _rodrigues(rotvec: Any) -> Any:
+    """Rotation matrices; for a small torch batch on the CPU without autograd, computed in NumPy
+    (the same formula, a quarter of the time there)."""
+    host = host_numpy(rotvec) if is_torch(rotvec) else None
+    return rodrigues(rotvec) if host is None else from_numpy(rodrigues(host))
+
+
+def _reference_forward(setup: ModelSetup, source: ArraySource, coeffs: Any, rotmats: Any, like: Any) -> tuple:
+    """Vertices (untranslated) and all output joints by the plain forward of :mod:`smplcore.engine.reference`."""
+    p = source.plain_arrays()
+    verts, joints, _ = reference.forward(
+        p.v_template, p.shapedirs, p.posedirs, p.J_regressor, p.parents, p.weights, coeffs, rotmats
+    )
+    parts = [joints]
+    if setup.keypoints.extra.size:
+        parts.append(verts[:, source.constant("extra_ids", like)])
+    if setup.spec.landmarks:
+        parts.append(barycentric_points(verts, source.constant("lmk_corners", like), source.constant("lmk_bary", like)))
+        if setup.use_face_contour:
+            rows_ = contour_rows(rotmats, setup.neck_chain)
+            corners = source.constant("contour_corners", like)[rows_]
+            parts.append(barycentric_points(verts, corners, source.constant("contour_bary", like)[rows_]))
+    xp = namespace(verts)
+    return verts, (xp.concat(parts, axis=1) if len(parts) > 1 else joints)
+
+
+def _fast_forward(
+    setup: ModelSetup,
+    arrays: engine.BodyArrays,
+    coeffs: Any,
+    rotmats: Any,
+    vertices: bool,
+    transl: Any | None,
+    kernel: str,
+) -> tuple:
+    """Vertices (translated) and output joints (untranslated) by the blocked or autograd kernels."""
+    verts, joints, transforms = engine.forward(
+        coeffs, rotmats, arrays, vertices=vertices, translation=transl, kernel=kernel
+    )
+    parts = [joints]
+    if setup.keypoints.ids.size:
+        parts += _keypoints(setup, arrays, coeffs, rotmats, transforms, verts, transl, kernel)
+    xp = namespace(joints)
+    return verts, (xp.concat(parts, axis=1) if len(parts) > 1 else joints)
+
+
+def _keypoints(
+    setup: ModelSetup,
+    arrays: engine.BodyArrays,
+    coeffs: Any,
+    rotmats: Any,
+    transforms: Any,
+    verts: Any | None,
+    transl: Any | None,
+    kernel: str,
+) -> list[Any]:
+    """Extra vertex joints, static landmarks and the dynamic contour, in smplx's order (untranslated)."""
+    kp, d = setup.keypoints, setup.data
+    if verts is None or kernel == "autograd":
+        # joints only, or under autograd (where reading them from the mesh would back-propagate a
+        # mesh-sized gradient): pose just the vertices the keypoints use
+        verts = engine.posed_vertex_subset(coeffs, rotmats, transforms, arrays, kp.ids, kernel)
+        prefix = "local_"
+    else:
+        prefix = ""
+        if transl is not None:
+            verts = verts[:, setup.const("kp_rows", kp.ids, verts)] - transl[:, None]
+            prefix = "local_"
+    c = setup.const
+    out = []
+    if kp.extra.size:
+        out.append(verts[:, c(prefix + "extra", getattr(kp, prefix + "extra"), verts)])
+    if setup.spec.landmarks:
+        corners = c(prefix + "corners", getattr(kp, prefix + "corners"), verts)
+        out.append(barycentric_points(verts, corners, c("lmk_bary", d.lmk_bary_coords, verts)))
+        if setup.use_face_contour:
+            rows_ = contour_rows(rotmats, setup.neck_chain)
+            dyn_bary = c("dyn_bary", d.dynamic_lmk_bary_coords, verts)[rows_]
+            contour = c(prefix + "contour_corners", getattr(kp, prefix + "contour_corners"), verts)
+            out.append(barycentric_points(verts, contour[rows_], dyn_bary))
+    return out

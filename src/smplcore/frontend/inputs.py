@@ -1,0 +1,77 @@
+"""Keyword parameters of a forward call, checked and laid out as the engine takes them.
+
+Accepted layouts, and nothing else (a wrong layout is an error naming the argument):
+
+* coefficients (``betas``, ``expression``, PCA hand poses): (B, n), or (n,) for one body;
+* axis-angle pose blocks: (B, 3 n), (B, n, 3), or (3 n,) for one body;
+* rotation matrices (``pose2rot=False``, Layer classes): (B, n, 3, 3), (B, 9 n), and (B, 3, 3) for a
+  one-joint block;
+* ``transl``: (B, 3) or (3,).
+
+Batch 1 broadcasts to the batch of the other parameters.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from smplcore.engine.backend import namespace
+from smplcore.errors import ShapeError
+
+
+def batch_of(params: dict[str, Any]) -> int:
+    """The batch size of a call: the largest leading size among the given (batched) parameters."""
+    batch = 1
+    for value in params.values():
+        if value is not None and value.ndim > 1 and value.shape[0] > batch:
+            batch = value.shape[0]
+    for name, value in params.items():
+        if value is not None and value.ndim > 1 and value.shape[0] not in (1, batch):
+            sizes = {k: v.shape[0] for k, v in params.items() if v is not None and v.ndim > 1}
+            raise ShapeError(
+                f"{name}: batch size {value.shape[0]} does not match the batch size {batch} of the other "
+                f"parameters (sizes: {sizes}); give 1 or {batch}"
+            )
+    return batch
+
+
+def rows(name: str, value: Any, batch: int, width: int, *, allow_narrower: bool = False, joints: int = 0) -> Any:
+    """``value`` as (batch, width): 1-D is one body, batch 1 broadcasts, narrower coefficients are zero-padded.
+
+    ``joints`` > 0 marks an axis-angle block of that many joints, which may also be given as (B, joints, 3).
+    """
+    xp = namespace(value)
+    if value.ndim == 1:
+        value = value[None]
+    if value.ndim == 3 and joints and tuple(value.shape[1:]) == (joints, 3):
+        value = value.reshape(value.shape[0], 3 * joints)
+    if value.ndim != 2:
+        raise ShapeError(f"{name}: expected shape {_layouts(width, allow_narrower, joints)}, got {tuple(value.shape)}")
+    n = value.shape[1]
+    if n != width and not (allow_narrower and n < width):
+        raise ShapeError(f"{name}: expected shape {_layouts(width, allow_narrower, joints)}, got {tuple(value.shape)}")
+    if n < width:
+        pad = xp.zeros_like(value[:, :1])
+        value = xp.concat([value, *([pad] * (width - n))], axis=1)
+    if value.shape[0] != batch:
+        value = xp.broadcast_to(value, (batch, width))
+    return value
+
+
+def _layouts(width: int, allow_narrower: bool, joints: int) -> str:
+    text = f"(B, {'<=' if allow_narrower else ''}{width})"
+    return f"{text} or (B, {joints}, 3)" if joints else text
+
+
+def rotmat_rows(name: str, value: Any, batch: int, joints: int) -> Any:
+    """``value`` as (batch, joints, 3, 3) from (B, n, 3, 3), (B, 9 n) or, for one joint, (B, 3, 3)."""
+    xp = namespace(value)
+    if value.ndim == 3 and joints == 1 and tuple(value.shape[1:]) == (3, 3):
+        value = value[:, None]
+    elif value.ndim == 2 and value.shape[1] == 9 * joints:
+        value = value.reshape(value.shape[0], joints, 3, 3)
+    if value.ndim != 4 or tuple(value.shape[1:]) != (joints, 3, 3):
+        raise ShapeError(f"{name}: expected rotation matrices of shape (B, {joints}, 3, 3), got {tuple(value.shape)}")
+    if value.shape[0] != batch:
+        value = xp.broadcast_to(value, (batch, joints, 3, 3))
+    return value

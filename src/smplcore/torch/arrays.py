@@ -1,0 +1,94 @@
+"""A torch module's arrays for :func:`smplcore.frontend.evaluate`: smplx's buffers are the truth.
+
+The modules register the same buffers as smplx (``v_template``, ``shapedirs``, ``expr_dirs``,
+``posedirs``, ``J_regressor``, ``lbs_weights``, ``parents``, hand PCA, landmarks), so ``state_dict``
+and in-place edits behave as there. The fast kernels' arrangement of them (:class:`BodyArrays`: one
+coordinate-major blend basis, a joint basis, transposed weights) is derived from the buffers and
+rebuilt whenever one of them changes: moved (``.to``), replaced, or edited in place (its version).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import torch
+
+from smplcore.engine import body as engine
+from smplcore.frontend.evaluate import PlainArrays
+
+# Buffers the engine's arrays are derived from (expr_dirs only where the model has one).
+SOURCE_BUFFERS = ("v_template", "shapedirs", "expr_dirs", "posedirs", "J_regressor", "lbs_weights", "parents")
+
+
+def _host(t: torch.Tensor) -> np.ndarray:
+    return t.detach().to("cpu", torch.float64).numpy()
+
+
+class ModuleArrays:
+    """The :class:`~smplcore.frontend.evaluate.ArraySource` of a torch body module."""
+
+    def __init__(self, module: torch.nn.Module) -> None:
+        self.module = module
+        self._key: tuple | None = None
+        self._fast: engine.BodyArrays | None = None
+
+    def _sources(self) -> list[torch.Tensor]:
+        return [getattr(self.module, n) for n in SOURCE_BUFFERS if getattr(self.module, n, None) is not None]
+
+    def fast_arrays(self) -> engine.BodyArrays:
+        """The engine's arrays, rebuilt when a source buffer moved or was edited."""
+        sources = self._sources()
+        key = tuple((t.data_ptr(), t._version, t.dtype, t.device, tuple(t.shape)) for t in sources)
+        if key != self._key:
+            self._fast, self._key = self._build(), key
+        return self._fast
+
+    def _build(self) -> engine.BodyArrays:
+        m = self.module
+        ref = m.v_template
+        dirs = m.shapedirs if getattr(m, "expr_dirs", None) is None else torch.cat([m.shapedirs, m.expr_dirs], -1)
+        num_verts = ref.shape[0]
+        posedirs = _host(m.posedirs).reshape(-1, num_verts, 3).transpose(1, 2, 0)
+
+        def convert(a: np.ndarray) -> torch.Tensor:
+            return torch.as_tensor(np.ascontiguousarray(a), dtype=ref.dtype, device=ref.device)
+
+        with torch.inference_mode(False), torch.no_grad():
+            return engine.BodyArrays.build(
+                _host(m.v_template),
+                _host(dirs),
+                _host(m.J_regressor),
+                posedirs,
+                _host(m.lbs_weights),
+                m.parents.detach().cpu().numpy(),
+                convert=convert,
+            )
+
+    def plain_arrays(self) -> PlainArrays:
+        m = self.module
+        dirs = m.shapedirs if getattr(m, "expr_dirs", None) is None else torch.cat([m.shapedirs, m.expr_dirs], -1)
+        return PlainArrays(m.v_template, dirs, m.posedirs, m.J_regressor, m.parent_list, m.lbs_weights)
+
+    def constant(self, name: str, like: Any) -> Any:
+        m = self.module
+        if name == "zero":
+            return m.v_template.new_zeros(1, 1)
+        if name.startswith("hand_components/"):
+            return getattr(m, m.hand_buffer(name.split("/", 1)[1], "components"))
+        if name == "pose_mean":
+            return m.pose_mean
+        if name == "extra_ids":
+            return m.vertex_joint_selector.extra_joints_idxs
+        if name == "lmk_corners":
+            return m.faces_tensor[m.lmk_faces_idx]
+        if name == "lmk_bary":
+            return m.lmk_bary_coords
+        if name == "contour_corners":
+            return m.faces_tensor[m.dynamic_lmk_faces_idx]
+        if name == "contour_bary":
+            return m.dynamic_lmk_bary_coords
+        raise KeyError(f"no model constant named {name!r}")
+
+    def trainable(self) -> bool:
+        return any(t.requires_grad for t in self._sources())
