@@ -64,7 +64,7 @@ class BodyModel:
         model_type: str | None = None,
         *,
         gender: str = "neutral",
-        ext: str = "pkl",
+        ext: str | None = None,
         dtype: Any = np.float32,
         is_rhand: bool = True,
         data: ModelData | None = None,

@@ -10,20 +10,26 @@ from smplcore.family.specs import get_spec
 OPEN_MODEL_PATH = Path(__file__).resolve().parents[1] / "data" / "open_model.npz"
 
 
+def default_ext(model_type: str) -> str:
+    """smplx's default file format per model: ``npz`` for SMPL-X, ``pkl`` for the others."""
+    return "npz" if get_spec(model_type).model_type == "smplx" else "pkl"
+
+
 def locate_model_file(
     model_path: str | Path | None,
     model_type: str | None = None,
     *,
     gender: str = "neutral",
-    ext: str = "pkl",
+    ext: str | None = None,
     is_rhand: bool = True,
 ) -> Path:
     """The file to load.
 
     ``model_path`` may be a file (used as is), or a folder holding the official file names either
     directly or in a sub-folder named after the model type (``models/smplx/SMPLX_NEUTRAL.npz``), as
-    smplx lays them out. ``ext`` is honoured for every model type. ``model_type="open"`` without a
-    path gives the packaged open model.
+    smplx lays them out. ``ext`` (default: :func:`default_ext`) is honoured for every model type; when that file is missing and the same
+    model is there in the other format (``.pkl`` / ``.npz``), that one is used. ``model_type="open"``
+    without a path gives the packaged open model.
     """
     if model_path is None or str(model_path) == "":
         if model_type is not None and get_spec(model_type).model_type == "open":
@@ -42,13 +48,16 @@ def locate_model_file(
     if spec.model_type == "open":
         return OPEN_MODEL_PATH
     folder = path / spec.model_type if (path / spec.model_type).is_dir() else path
-    ext = ext.lstrip(".").lower()
+    ext = (ext or default_ext(spec.model_type)).lstrip(".").lower()
     if ext not in ("pkl", "npz"):
         raise ValueError(f"ext: expected 'pkl' or 'npz', got {ext!r}")
     stem = spec.file_stem.format(GENDER=str(gender).upper(), SIDE="RIGHT" if is_rhand else "LEFT")
-    candidates = [folder / f"{stem}.{ext}"]
+    other = "npz" if ext == "pkl" else "pkl"
+    # the requested format first, then the same model in the other format (smplx's SMPL always reads .pkl,
+    # so code written for it passes any ext)
+    candidates = [folder / f"{stem}.{ext}", folder / f"{stem}.{other}"]
     if spec.model_type == "flame":
-        candidates.append(folder / f"generic_model.{ext}")
+        candidates += [folder / f"generic_model.{ext}", folder / f"generic_model.{other}"]
     for candidate in candidates:
         if candidate.is_file():
             return candidate
@@ -65,7 +74,7 @@ def read_model(
     model_type: str | None = None,
     *,
     gender: str = "neutral",
-    ext: str = "pkl",
+    ext: str | None = None,
     is_rhand: bool = True,
 ):
     """Locate and load a model: :func:`locate_model_file` then :func:`smplcore.io.load_model`.

@@ -106,6 +106,12 @@ class SMPL(nn.Module):
         super().__init__()
         spec, name = self.SPEC, type(self).__name__
         setup_opts, initial, create = split_keywords(name, kwargs, self.PARAMETERS)
+        # smplx takes every option in every class and ignores those that do not apply: so do we
+        if not spec.landmarks:
+            setup_opts.pop("use_face_contour", None)
+        if not spec.hand_blocks:
+            for option in ("use_pca", "num_pca_comps", "flat_hand_mean"):
+                setup_opts.pop(option, None)
         data = _load(type(self), model_path, data_struct, data, gender, ext or self.DEFAULT_EXT, is_rhand)
         if self.LAYER and "use_pca" not in setup_opts and not _has_hand_pca(data):
             setup_opts["use_pca"] = False  # a Layer never reads PCA hands; smplx still registers the bases
