@@ -43,8 +43,8 @@ _HANDS = ("openpose137", "coco_wholebody133", "hand21_left", "hand21_right")
 _PUPILS = ("openpose135", "openpose137", "face70")
 
 
-def _pair(conventions, names, like, definition, note):
-    return tuple(Approximation(tuple(conventions), n, l, definition, note) for n, l in zip(names, like, strict=True))
+def _pair(conventions: tuple[str, ...], names: tuple[str, ...], likes: tuple[str, ...], definition: str, note: str):
+    return tuple(Approximation(tuple(conventions), n, lk, definition, note) for n, lk in zip(names, likes, strict=True))
 
 
 APPROXIMATE: tuple[Approximation, ...] = (
