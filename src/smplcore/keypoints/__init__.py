@@ -13,6 +13,7 @@ from smplcore.keypoints.aliases import ALIASES, FALSE_FRIENDS, canonical, canoni
 from smplcore.keypoints.approximate import APPROXIMATE, SYNTHESIS, Approximation
 from smplcore.keypoints.conventions import CONVENTIONS, conventions, names
 from smplcore.keypoints.convert import Layout, Plan, convert, layout, plan
+from smplcore.keypoints.readers import KeypointArray, read_coco, read_openpose
 from smplcore.keypoints.regressor import Regressor, open_model_regressor
 
 __all__ = [
@@ -21,6 +22,7 @@ __all__ = [
     "Approximation",
     "CONVENTIONS",
     "FALSE_FRIENDS",
+    "KeypointArray",
     "Layout",
     "Plan",
     "Regressor",
@@ -34,4 +36,6 @@ __all__ = [
     "open_model_regressor",
     "own_names",
     "plan",
+    "read_coco",
+    "read_openpose",
 ]

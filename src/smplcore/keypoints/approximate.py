@@ -39,7 +39,7 @@ class Approximation:
 
 _COCO_STYLE = ("coco17", "coco_wholebody133", "openpose18", "openpose25", "openpose135", "openpose137")
 _OPENPOSE_NECK = ("openpose18", "openpose25", "openpose137")
-_HANDS = ("openpose137", "coco_wholebody133", "hand21_left", "hand21_right")
+_HANDS = ("openpose137", "coco_wholebody133")
 _PUPILS = ("openpose135", "openpose137", "face70")
 
 
@@ -133,12 +133,16 @@ APPROXIMATE: tuple[Approximation, ...] = (
         "mediapipe",
         "MediaPipe's foot index is the tip of the foot, near but not at the big toe's tip",
     ),
-    *_pair(
-        _HANDS,
-        ("left_wrist_hand", "right_wrist_hand"),
-        ("left_wrist", "right_wrist"),
-        "hand",
-        "the hand model's own wrist estimate, the same joint as the body's wrist seen by another detector",
+    *(
+        row
+        for side in ("left", "right")
+        for row in _pair(
+            _HANDS + (f"hand21_{side}",),
+            (f"{side}_wrist_hand",),
+            (f"{side}_wrist",),
+            "hand",
+            "the hand model's own wrist estimate, the same joint as the body's wrist seen by another detector",
+        )
     ),
     *_pair(
         _PUPILS,

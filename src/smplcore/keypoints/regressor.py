@@ -217,7 +217,7 @@ def _read_npy(fh: Any) -> Any:
     try:
         return np.load(fh, allow_pickle=False)
     except ValueError:  # an object array: a pickle after the header, read through the allow-list
-        from smplcore.io.safe_pickle import safe_load
+        from smplcore.io.safe_pickle import materialize, safe_load
 
         fh.seek(0)
         np.lib.format.read_magic(fh)
@@ -225,7 +225,7 @@ def _read_npy(fh: Any) -> Any:
         reader(fh)
         value = safe_load(fh)
         if isinstance(value, np.ndarray) and value.dtype == object and value.shape == ():
-            value = value.item()
+            value = materialize(value.item())  # the stand-ins inside an object array
         return value
 
 
