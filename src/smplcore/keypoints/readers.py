@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from smplcore.errors import ModelFileError
-from smplcore.keypoints.conventions import COCO17, CONVENTIONS, FACE68, FACE70, FEET6, hand21
+from smplcore.keypoints.conventions import COCO17, CONVENTIONS, FACE68, FEET6, hand21
 
 
 @dataclass(frozen=True)
@@ -31,17 +31,21 @@ class KeypointArray:
     names : K vocabulary names of the points.
     convention : the convention key when the points are exactly one (``"openpose25"``), else None.
     frames : F labels: the JSON file of each frame (OpenPose) or the image id (COCO).
+    qualified : K names qualified by the convention of the part they come from
+        (``"openpose25:neck"``, ``"hand21_left:left_index1"``), so that points keep their
+        convention's definitions when the whole is no single convention.
     """
 
     points: np.ndarray
     names: tuple[str, ...]
     convention: str | None
     frames: tuple[Any, ...]
+    qualified: tuple[str, ...] = ()
 
     @property
     def joint_names(self) -> list[str]:
         """The point names (so a KeypointArray can be ``src`` of :func:`~smplcore.keypoints.convert`)."""
-        return list(self.names)
+        return list(self.qualified or self.names)
 
     def to(self, dst: Any, exact_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """``convert(self.points, self, dst, exact_only)``: (F, P, K_dst, 3) points and the (K_dst,) mask."""
@@ -153,18 +157,26 @@ def read_openpose(
         frames.append(people[:max_people] if max_people is not None else people)
     if body_k is None:
         body_k = 25
-    body_names = CONVENTIONS[_OPENPOSE_BODIES[body_k]]
-    names = body_names + (hand21("left") + hand21("right") if hands else ()) + (FACE70 if face else ())
-    return _pack(frames, names, tuple(str(f) for f in files))
+    parts = (
+        [_OPENPOSE_BODIES[body_k]] + (["hand21_left", "hand21_right"] if hands else []) + (["face70"] if face else [])
+    )
+    return _pack(frames, parts, tuple(str(f) for f in files))
 
 
-def _pack(frames: list[list[np.ndarray]], names: tuple[str, ...], labels: tuple[Any, ...]) -> KeypointArray:
+def _pack(frames: list[list[np.ndarray]], parts: list[str] | tuple[str, ...], labels: tuple[Any, ...]) -> KeypointArray:
+    """Stack per-frame people into (F, P, K, 3); ``parts``: the conventions (or names) of the K points."""
+    if all(p in CONVENTIONS for p in parts):
+        names = tuple(n for p in parts for n in CONVENTIONS[p])
+        qualified = tuple(f"{p}:{n}" for p in parts for n in CONVENTIONS[p])
+    else:
+        names, qualified = tuple(parts), ()
     count = max((len(f) for f in frames), default=0)
     points = np.zeros((len(frames), count, len(names), 3), dtype=np.float32)
     for i, people in enumerate(frames):
         for j, person in enumerate(people):
             points[i, j] = person
-    return KeypointArray(points, names, _convention_of(names), labels)
+    convention = _convention_of(names)
+    return KeypointArray(points, names, convention, labels, () if convention else qualified)
 
 
 # -- COCO -----------------------------------------------------------------------------------------
@@ -176,6 +188,7 @@ _WHOLEBODY_PARTS = (
     ("lefthand_kpts", hand21("left")),
     ("righthand_kpts", hand21("right")),
 )
+_WHOLEBODY = COCO17 + FEET6 + FACE68 + hand21("left") + hand21("right")
 
 
 def read_coco(path: str | Path, *, max_people: int | None = None) -> KeypointArray:
@@ -199,7 +212,7 @@ def read_coco(path: str | Path, *, max_people: int | None = None) -> KeypointArr
         )
     annotations = doc["annotations"]
     wholebody = any(isinstance(a, dict) and "foot_kpts" in a for a in annotations)
-    names: tuple[str, ...] | None = sum((n for _, n in _WHOLEBODY_PARTS), ()) if wholebody else None
+    names: tuple[str, ...] | None = _WHOLEBODY if wholebody else None
     by_image: dict[Any, list[np.ndarray]] = {}
     for i, ann in enumerate(annotations):
         where = f"annotations[{i}]"
@@ -233,7 +246,8 @@ def read_coco(path: str | Path, *, max_people: int | None = None) -> KeypointArr
     else:
         ids = sorted(by_image, key=lambda k: (str(type(k)), k))
     frames = [by_image.get(k, [])[:max_people] if max_people is not None else by_image.get(k, []) for k in ids]
-    return _pack(frames, names or COCO17, tuple(ids))
+    names = names or COCO17
+    return _pack(frames, [_convention_of(names)] if _convention_of(names) else names, tuple(ids))
 
 
 def _coco_names(path: Path, doc: dict, count: int, field: str) -> tuple[str, ...]:
