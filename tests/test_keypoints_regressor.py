@@ -173,3 +173,48 @@ def test_open_model_regressor_follows_the_posed_mesh():
     wrist = kp.names("coco17").index("left_wrist")
     assert float(coco[wrist, 1]) < 0.2  # the wrist went down with the arm
     assert float((coco[wrist] - smpl[wrist]).norm()) < 0.05
+
+
+class _ModelWithRegressors:
+    """Stands for a model whose outputs have regressor joints appended under qualified names."""
+
+    def __init__(self, joint_names):
+        self.joint_names = joint_names
+
+
+def test_load_regressors_stacks_them_under_qualified_names(tmp_path, open_tpose):
+    model, verts, joints = open_tpose
+    np.save(tmp_path / "extra.npy", np.eye(verts.shape[0])[[10, 20, 30]])
+    both = kp.load_regressors({"h36m17": "open", "extra": tmp_path / "extra.npy"}, num_vertices=verts.shape[0])
+    assert both.names[:2] == ("h36m17:pelvis", "h36m17:left_hip") and both.names[-3:] == (
+        "extra_0",
+        "extra_1",
+        "extra_2",
+    )
+    assert both.matrix.shape == (20, verts.shape[0])
+    h36m = kp.open_model_regressor("h36m17")
+    assert set(h36m.vertex_ids) | {10, 20, 30} == set(both.vertex_ids)
+    appended = both.apply_subset(verts[both.vertex_ids])
+    np.testing.assert_allclose(appended, both.apply(verts), atol=1e-12)
+    np.testing.assert_allclose(appended[17:], verts[[10, 20, 30]], atol=1e-12)
+    # a model's outputs with the regressor joints appended: convert takes H36M's points from them, exactly
+    outputs = np.concatenate([joints, appended])
+    fake = _ModelWithRegressors(model.joint_names + list(both.names))
+    out, mask = kp.convert(outputs, fake, "h36m17", exact_only=True)
+    assert mask.all()
+    np.testing.assert_allclose(out, h36m.apply(verts), atol=1e-12)
+    np.testing.assert_array_equal(kp.convert(outputs, fake, "smpl24")[0], joints[:24])  # its own joints stay first
+    with pytest.raises(ModelFileError, match="the model has 6890 vertices"):
+        kp.load_regressors({"coco17": "open"}, num_vertices=6890)
+    with pytest.raises(ValueError, match="'open' needs a convention name"):
+        kp.load_regressors({"mine": "open"})
+
+
+def test_flame_model_outputs_are_the_flame_convention(fake_models):
+    model = smplcore.BodyModel(fake_models["root"], model_type="flame", dtype=np.float64, use_face_contour=True)
+    joints = model().joints
+    out, mask = kp.convert(joints, model, "flame")
+    assert mask.all()
+    np.testing.assert_array_equal(out, joints)
+    smplx_face, mask = kp.convert(joints, model, "smplx144", exact_only=True)
+    assert mask.sum() == 71  # the jaw, the eyeballs (SMPL-X's *_smplhf joints) and the 68 face points

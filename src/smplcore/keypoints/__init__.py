@@ -14,7 +14,7 @@ from smplcore.keypoints.approximate import APPROXIMATE, SYNTHESIS, Approximation
 from smplcore.keypoints.conventions import CONVENTIONS, conventions, names
 from smplcore.keypoints.convert import Layout, Plan, convert, layout, plan
 from smplcore.keypoints.readers import KeypointArray, read_coco, read_openpose
-from smplcore.keypoints.regressor import Regressor, open_model_regressor
+from smplcore.keypoints.regressor import Regressor, load_regressors, open_model_regressor
 
 __all__ = [
     "ALIASES",
@@ -32,6 +32,7 @@ __all__ = [
     "conventions",
     "convert",
     "layout",
+    "load_regressors",
     "names",
     "open_model_regressor",
     "own_names",

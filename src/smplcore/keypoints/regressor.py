@@ -126,7 +126,9 @@ class Regressor:
     def qualified_names(self) -> tuple[str, ...]:
         """Names as ``"convention:name"`` (plain names without a convention): unambiguous next to a model's
         own joints, and understood by :func:`smplcore.keypoints.convert`."""
-        return self.names if self.convention is None else tuple(f"{self.convention}:{n}" for n in self.names)
+        if self.convention is None:
+            return self.names
+        return tuple(n if ":" in n else f"{self.convention}:{n}" for n in self.names)
 
     def check(self, num_vertices: int, path: str | None = None) -> None:
         """Raise ModelFileError unless the regressor is for a mesh of ``num_vertices`` vertices."""
@@ -268,6 +270,56 @@ def _pick_matrix(path: Path, value: Any, key: str | None) -> tuple[Any, tuple[st
     else:
         matrix = matrix.astype(np.float64)
     return matrix, stored_names
+
+
+def load_regressors(regressors: Any, num_vertices: int | None = None) -> Regressor:
+    """Several regressors stacked into one, for a model option such as ``joint_regressors={"h36m17": path}``.
+
+    Parameters
+    ----------
+    regressors : mapping convention -> a path, a :class:`Regressor`, or ``"open"`` for smplcore's own
+        open-model regressor of that convention; keys that are no known convention name the points
+        ``"{key}_{k}"`` (a Regressor value keeps its names).
+    num_vertices : the model's vertex count; any regressor for another mesh raises ModelFileError.
+
+    Returns
+    -------
+    Regressor whose rows are all the regressors' rows in the mapping's order, named by
+    :meth:`Regressor.qualified_names` (``"h36m17:pelvis"``), so that they can be appended to a
+    model's joints without clashing with its own names; ``vertex_ids`` is the union.
+    """
+    import scipy.sparse as sp
+
+    from smplcore.keypoints.conventions import convention_key
+
+    parts: list[Regressor] = []
+    for key, value in dict(regressors).items():
+        try:
+            convention = convention_key(key)
+        except ValueError:
+            convention = None
+        if isinstance(value, Regressor):
+            reg = value
+        elif isinstance(value, str) and value == "open":
+            if convention is None:
+                raise ValueError(f"joint_regressors[{key!r}]: 'open' needs a convention name as the key")
+            reg = open_model_regressor(convention)
+        else:
+            reg = Regressor.load(value, convention=convention)
+            if convention is None:
+                reg = Regressor(reg.matrix, tuple(f"{key}_{k}" for k in range(reg.matrix.shape[0])), None, reg.source)
+        if num_vertices is not None:
+            reg.check(num_vertices)
+        parts.append(reg)
+    if not parts:
+        raise ValueError("joint_regressors: expected at least one regressor")
+    columns = {p.num_vertices for p in parts}
+    if len(columns) > 1:
+        raise ModelFileError(parts[0].source, f"the regressors are for meshes of different sizes {sorted(columns)}")
+    matrix = sp.vstack([sp.csr_matrix(p.matrix) for p in parts], format="csr")
+    names = tuple(n for p in parts for n in p.qualified_names())
+    sources = "; ".join(p.source for p in parts)
+    return Regressor(matrix, names, None, sources)
 
 
 # -- the open model's own regressors --------------------------------------------------------------
