@@ -182,7 +182,8 @@ def convert(points: Any, src: Any, dst: Any, exact_only: bool = False) -> tuple[
 
     Returns
     -------
-    out : (..., K_dst, D), same type, dtype and device as ``points``; masked points are zero.
+    out : (..., K_dst, D), same type, dtype and device as ``points`` (NumPy integers become float64 when a
+        point is synthesised); masked points are zero.
     mask : (K_dst,) bool (a NumPy array, or a torch tensor on the points' device), True where a
         point was available.
     """
@@ -192,22 +193,31 @@ def convert(points: Any, src: Any, dst: Any, exact_only: bool = False) -> tuple[
         raise ShapeError(
             f"points: expected shape (..., {len(p.src)}, D) for src {p.src.label} with {len(p.src)} points, got {shape}"
         )
-    zero_index = len(p.src)
-    first = np.where(p.mask, p.first, zero_index)
-    second = np.where(p.mask, p.second, zero_index)
-    synthesised = bool(np.any(first != second))
+    first = np.where(p.mask, p.first, 0)
+    synth = np.flatnonzero(p.mask & (p.first != p.second))
+    missing = not bool(p.mask.all())
     if _is_torch(points):
         import torch
 
-        ext = torch.cat([points, points.new_zeros(shape[:-2] + (1, shape[-1]))], dim=-2)
-        a = torch.as_tensor(first, device=points.device)
-        out = ext[..., a, :]
-        if synthesised:
-            out = 0.5 * (out + ext[..., torch.as_tensor(second, device=points.device), :])
-        return out, torch.as_tensor(p.mask, device=points.device)
+        def take(rows: np.ndarray) -> Any:
+            return points.index_select(-2, torch.as_tensor(rows, dtype=torch.long, device=points.device))
+
+        out = take(first)
+        if synth.size:
+            half = 0.5 * (out + take(np.where(p.mask, p.second, 0)))
+            is_synth = np.zeros(len(first), dtype=bool)
+            is_synth[synth] = True
+            out = torch.where(torch.as_tensor(is_synth, device=points.device)[:, None], half, out)
+        mask = torch.as_tensor(p.mask, device=points.device)
+        if missing:
+            out = out.masked_fill(~mask[:, None], 0)
+        return out, mask
     arr = np.asarray(points)
-    ext = np.concatenate([arr, np.zeros(shape[:-2] + (1, shape[-1]), dtype=arr.dtype)], axis=-2)
-    out = ext[..., first, :]
-    if synthesised:
-        out = (0.5 * (out + ext[..., second, :])).astype(np.result_type(arr.dtype, np.float32), copy=False)
+    out = np.take(arr, first, axis=-2)
+    if synth.size:
+        if out.dtype.kind != "f":
+            out = out.astype(np.float64)
+        out[..., synth, :] = 0.5 * (np.take(arr, p.first[synth], axis=-2) + np.take(arr, p.second[synth], axis=-2))
+    if missing:
+        out[..., ~p.mask, :] = 0
     return out, p.mask.copy()

@@ -144,7 +144,12 @@ class Regressor:
         shape = tuple(vertices.shape)
         if len(shape) < 2 or shape[-2] != self.num_vertices:
             raise ShapeError(f"vertices: expected shape (..., {self.num_vertices}, D), got {shape}")
-        return self.apply_subset(vertices[..., _index(vertices, self.vertex_ids), :])
+        if type(vertices).__module__.split(".")[0] == "torch":
+            import torch
+
+            ids = torch.as_tensor(self.vertex_ids, dtype=torch.long, device=vertices.device)
+            return self.apply_subset(vertices.index_select(-2, ids))
+        return self.apply_subset(np.take(np.asarray(vertices), self.vertex_ids, axis=-2))
 
     def apply_subset(self, subset: Any) -> Any:
         """Keypoints (..., K, D) from ``subset`` (..., n, D): only the vertices :attr:`vertex_ids`, in that order.
@@ -164,14 +169,6 @@ class Regressor:
         return np.matmul(self.weights.astype(dtype, copy=False), arr.astype(dtype, copy=False))
 
     __call__ = apply
-
-
-def _index(x: Any, ids: np.ndarray) -> Any:
-    if type(x).__module__.split(".")[0] == "torch":
-        import torch
-
-        return torch.as_tensor(ids, device=x.device)
-    return ids
 
 
 # -- reading --------------------------------------------------------------------------------------
