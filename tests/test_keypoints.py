@@ -232,3 +232,16 @@ def test_model_and_name_list_sources_and_bad_shapes():
         kp.convert(np.zeros((2, 25, 3)), "coco17", "smpl24")
     with pytest.raises(TypeError, match="src: expected a convention name"):
         kp.convert(joints, 3, "coco17")
+
+
+def test_keypoints_never_import_torch():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, numpy as np; from smplcore import keypoints as kp; "
+        "kp.convert(np.zeros((2, 45, 3)), 'smpl45', 'openpose25'); "
+        "kp.open_model_regressor('coco17').apply(np.zeros((13380, 3))); "
+        "assert 'torch' not in sys.modules, 'torch was imported'"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)

@@ -103,10 +103,22 @@ def draw(convention: str, base: np.ndarray, verts: np.ndarray, src_points: np.nd
             text = f"{n} {h}"
             ink.text((x, 30), text, fill=_COLOURS.get(h, (120, 120, 120)), font=font)
             x += ink.textlength(text, font=font) + 14
-    if counts["missing"]:
-        ink.text(
-            (10, args.size - 20), "missing on the open model: see docs/keypoints.md", fill=(120, 120, 120), font=font
-        )
+    missing = [names[i] for i, h in enumerate(how) if h == "missing"]
+    if missing:
+        if len(missing) <= 16:
+            text = "missing on the open model: " + ", ".join(missing)
+        else:
+            text = f"{len(missing)} missing: face landmarks and finger joints, which the open model does not have"
+        lines, line = [], ""
+        for word in text.split(" "):
+            if ink.textlength(line + " " + word, font=font) > args.size - 20:
+                lines.append(line)
+                line = word
+            else:
+                line = f"{line} {word}".strip()
+        lines.append(line)
+        for k, line in enumerate(lines):
+            ink.text((10, args.size - 8 - 14 * (len(lines) - k)), line, fill=(120, 120, 120), font=font)
     path = args.out / f"{convention}.png"
     _save_small(image, path)
     return path, counts

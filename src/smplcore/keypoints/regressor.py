@@ -28,7 +28,7 @@ def _is_sparse(m: Any) -> bool:
     return hasattr(m, "tocsr") and hasattr(m, "nnz")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Regressor:
     """K named keypoints as linear functions of a mesh's V vertices.
 
