@@ -19,7 +19,8 @@ from smplcore import BodyModel
 from smplcore.cli import main
 from smplcore.io.locate import OPEN_MODEL_PATH
 from smplcore.motion import ProcessOptions, load_motion, options_from_recipe, process_tree
-from smplcore.motion.process import LOCK_NAME, TMP_SUFFIX, ProcessError, _locked
+from smplcore.motion.process import LOCK_NAME, TMP_SUFFIX, ProcessError
+from smplcore.motion.process.manifest import _locked
 from smplcore.motion.synthetic import random_arrays, write_sequence, write_tree
 
 GOOD = [  # (relative path, frames, fps, gender)

@@ -1,0 +1,105 @@
+"""The output folder's bookkeeping: its lock, leftover temporaries, finished outputs, ``manifest.json``."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from smplcore.motion.process.options import ProcessError
+from smplcore.motion.process.task import TMP_SUFFIX, _now, atomic_write
+
+MANIFEST_NAME = "manifest.json"
+LOCK_NAME = ".smplcore-process.lock"
+
+
+def _npy_shape(fh: Any) -> tuple[int, ...]:
+    version = np.lib.format.read_magic(fh)
+    read = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}
+    return tuple(read[version](fh)[0])
+
+
+def _output_frames(path: Path) -> int | None:
+    """Number of frames in an existing output, read from its header (None if unreadable)."""
+    import zipfile
+
+    try:
+        if path.suffix == ".npy":
+            with open(path, "rb") as fh:
+                return int(_npy_shape(fh)[0])
+        with zipfile.ZipFile(path) as archive, archive.open("joints.npy") as fh:
+            return int(_npy_shape(fh)[0])
+    except Exception:  # noqa: BLE001 -- unreadable: not a finished output
+        return None
+
+
+def _clean_temporaries(output_dir: Path) -> int:
+    removed = 0
+    for root, _, names in os.walk(output_dir):
+        for name in names:
+            if name.startswith(".") and name.endswith(TMP_SUFFIX):
+                with contextlib.suppress(OSError):
+                    os.unlink(os.path.join(root, name))
+                    removed += 1
+    return removed
+
+
+@contextlib.contextmanager
+def _locked(output_dir: Path):
+    """Hold the output folder's lock (released by the OS if the process dies)."""
+    path = output_dir / LOCK_NAME
+    fh = open(path, "a+")
+    try:
+        try:
+            import fcntl
+        except ImportError:  # Windows: no lock
+            fcntl = None
+        if fcntl is not None:
+            try:
+                fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                raise ProcessError(
+                    f"{output_dir}: another 'smplcore process' run is writing to this folder (lock {path})"
+                ) from None
+        fh.seek(0)
+        fh.truncate()
+        fh.write(f"{os.getpid()}\n")
+        fh.flush()
+        yield
+    finally:
+        fh.close()
+
+
+class _Manifest:
+    """The manifest (JSON), rewritten atomically at the start, every few seconds and at the end."""
+
+    def __init__(self, path: Path, header: dict[str, Any]) -> None:
+        self.path = path
+        self.header = header
+        self.entries: dict[str, dict[str, Any]] = {}
+        self.last_write = 0.0
+
+    @staticmethod
+    def read(path: Path) -> dict[str, Any] | None:
+        try:
+            with open(path, encoding="utf-8") as fh:
+                return json.load(fh)
+        except (OSError, ValueError):
+            return None
+
+    def write(self, status: str, totals: dict[str, Any]) -> None:
+        doc = dict(
+            self.header,
+            status=status,
+            updated=_now(),
+            totals=totals,
+            files=[self.entries[k] for k in sorted(self.entries)],
+        )
+        text = json.dumps(doc, indent=1)
+        atomic_write(self.path, lambda fh: fh.write(text.encode("utf-8")))
+        self.last_write = time.monotonic()
