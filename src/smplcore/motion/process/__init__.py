@@ -34,14 +34,20 @@ from smplcore.motion.process.options import (
     options_from_recipe,
     parse_axes,
 )
-from smplcore.motion.process.run import Summary, process_tree
+from smplcore.motion.process.preflight import OutputSizeWarning
+from smplcore.motion.process.report import EXIT_DISK_FULL, DiskFullError, ProcessFailed, Summary
+from smplcore.motion.process.run import process_tree
 from smplcore.motion.process.task import TMP_SUFFIX, Task, WorkerState, atomic_write, find_inputs, process_file
 
 __all__ = [
     "DEFAULT_EXCLUDE",
+    "EXIT_DISK_FULL",
     "LOCK_NAME",
     "MANIFEST_NAME",
     "RECIPES",
+    "DiskFullError",
+    "OutputSizeWarning",
+    "ProcessFailed",
     "TMP_SUFFIX",
     "ProcessError",
     "ProcessOptions",

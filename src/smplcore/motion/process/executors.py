@@ -99,9 +99,13 @@ def available_cpus() -> int:
         return os.cpu_count() or 1
 
 
-def _run_inline(tasks: list[Task], options: ProcessOptions, on_result: Callable, tick: Callable) -> None:
+def _run_inline(
+    tasks: list[Task], options: ProcessOptions, on_result: Callable, tick: Callable, stopping: Callable
+) -> None:
     state = WorkerState.build(options)
     for task in tasks:
+        if stopping():
+            return
         on_result(process_file(task, state))
         tick()
 
@@ -123,17 +127,30 @@ def _mp_context(options: ProcessOptions) -> Any:
     return context
 
 
-def _run_pool(tasks: list[Task], options: ProcessOptions, workers: int, on_result: Callable, tick: Callable) -> None:
+def _run_pool(
+    tasks: list[Task], options: ProcessOptions, workers: int, on_result: Callable, tick: Callable, stopping: Callable
+) -> None:
+    """Run the tasks in worker processes. ``stopping()`` true (a full disk): no new file starts, the files in
+    hand finish. Any exception here (Ctrl-C) cuts the workers' lifeline first, so they exit at once (their
+    outputs are atomic; a half-written temporary is removed by the next run) instead of finishing their files."""
     threads = max(1, available_cpus() // workers)
     context = _mp_context(options)
     attempts: dict[str, int] = {}
     pending = list(tasks)
     alive_r, alive_w = context.Pipe(duplex=False)  # the workers' lifeline (see _watch_parent)
     try:
-        _pool_rounds(pending, options, workers, threads, context, alive_r, attempts, on_result, tick)
+        _pool_rounds(
+            pending, options, workers, threads, context, (alive_r, alive_w), attempts, on_result, tick, stopping
+        )
     finally:
         alive_w.close()
         alive_r.close()
+
+
+WORKER_DIED = (
+    "the worker process died while processing this file (out of memory? killed?); if every file says "
+    "this, a worker could not start: see the errors printed above"
+)
 
 
 def _pool_rounds(
@@ -142,12 +159,14 @@ def _pool_rounds(
     workers: int,
     threads: int,
     context: Any,
-    alive: Any,
+    lifeline: tuple[Any, Any],
     attempts: dict[str, int],
     on_result: Callable,
     tick: Callable,
+    stopping: Callable,
 ) -> None:
-    while pending:
+    alive, alive_w = lifeline
+    while pending and not stopping():
         broken: list[Task] = []
         with (
             _single_threaded_blas(),
@@ -161,15 +180,19 @@ def _pool_rounds(
             futures = {pool.submit(_worker_run, task): task for task in pending}
             try:
                 while futures:
-                    done, _ = wait(list(futures), timeout=1.0, return_when=FIRST_COMPLETED)
+                    done, _ = wait(list(futures), timeout=0.5, return_when=FIRST_COMPLETED)
                     for future in done:
                         task = futures.pop(future)
                         try:
                             on_result(future.result())
                         except BrokenProcessPool:
                             broken.append(task)
+                    if stopping():  # drop the queued files; the running ones finish
+                        for future in [f for f in futures if f.cancel()]:
+                            futures.pop(future)
                     tick()
             except BaseException:
+                alive_w.close()  # the workers exit now (see _watch_parent)
                 for future in futures:
                     future.cancel()
                 raise
@@ -180,13 +203,7 @@ def _pool_rounds(
                 pending.append(task)
             else:
                 on_result(
-                    {
-                        "input": task.relative,
-                        "output": None,
-                        "status": "skipped",
-                        "seconds": 0.0,
-                        "reason": "the worker process died while processing this file (out of memory?)",
-                    }
+                    {"input": task.relative, "output": None, "status": "skipped", "seconds": 0.0, "reason": WORKER_DIED}
                 )
 
 
@@ -197,6 +214,7 @@ def _run_ray(
     workers: int | None,
     on_result: Callable,
     tick: Callable,
+    stopping: Callable,
 ) -> int:
     """Run the tasks on Ray; returns the number of CPUs of the cluster."""
     try:
@@ -234,6 +252,11 @@ def _run_ray(
                         "reason": f"Ray task failed: {type(exc).__name__}: {exc}",
                     }
                 on_result(result)
+            if stopping():  # drop the queued tasks; a running one finishes or is cancelled
+                for ref in pending:
+                    with contextlib.suppress(Exception):
+                        ray.cancel(ref)
+                pending = {}
             tick()
     except BaseException:
         for ref in pending:  # interrupted: drop the queued tasks (running ones write atomically)

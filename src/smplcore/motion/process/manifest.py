@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import time
@@ -51,28 +52,85 @@ def _clean_temporaries(output_dir: Path) -> int:
 
 @contextlib.contextmanager
 def _locked(output_dir: Path):
-    """Hold the output folder's lock (released by the OS if the process dies)."""
-    path = output_dir / LOCK_NAME
-    fh = open(path, "a+")
+    """Hold the output folder's lock (released by the OS if the process dies); the lock file is removed
+    when the run ends.
+
+    The file is removed while still locked, so a run that opened it meanwhile holds a lock on a file
+    that is gone: after locking, each run checks that the path is still the file it locked, and
+    starts over if not.
+    """
     try:
+        import fcntl
+    except ImportError:  # Windows: no lock
+        fcntl = None
+    path = output_dir / LOCK_NAME
+    while True:
+        fh = open(path, "a+")
+        if fcntl is None:
+            break
         try:
-            import fcntl
-        except ImportError:  # Windows: no lock
-            fcntl = None
-        if fcntl is not None:
-            try:
-                fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:
-                raise ProcessError(
-                    f"{output_dir}: another 'smplcore process' run is writing to this folder (lock {path})"
-                ) from None
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            fh.seek(0)
+            holder = fh.read().strip()
+            fh.close()
+            raise ProcessError(_locked_message(output_dir, path, holder)) from None
+        try:
+            same = os.path.samestat(os.fstat(fh.fileno()), os.stat(path))
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        fh.close()  # the run that held it removed it: lock the new one
+    try:
         fh.seek(0)
         fh.truncate()
         fh.write(f"{os.getpid()}\n")
         fh.flush()
         yield
     finally:
+        with contextlib.suppress(OSError):
+            os.unlink(path)
         fh.close()
+
+
+def _locked_message(output_dir: Path, path: Path, holder: str) -> str:
+    if holder == str(os.getppid()):
+        return (
+            f"{output_dir}: locked by this process's parent (pid {holder}): this is a worker process of that run, "
+            're-importing its main script, which calls process_tree outside `if __name__ == "__main__":`; '
+            "put the call under that guard"
+        )
+    who = f" (pid {holder})" if holder.isdigit() else ""
+    return f"{output_dir}: another 'smplcore process' run{who} is writing to this folder (lock {path})"
+
+
+class SpaceReserve:
+    """A file of ``size`` bytes kept in the output folder while a run writes, deleted when the disk fills
+    so that the final manifest still fits; removed at the end of the run."""
+
+    NAME = ".smplcore-process.reserve"
+
+    def __init__(self, output_dir: Path, size: int) -> None:
+        self.path = output_dir / self.NAME
+        with open(self.path, "wb") as fh:
+            try:
+                os.posix_fallocate(fh.fileno(), 0, size)
+            except (AttributeError, OSError) as exc:  # no fallocate (or not on this file system): write zeros
+                if isinstance(exc, OSError) and exc.errno not in (None, errno.EOPNOTSUPP, errno.EINVAL):
+                    raise
+                fh.write(bytes(size))
+            fh.flush()
+            os.fsync(fh.fileno())
+
+    def release(self) -> None:
+        with contextlib.suppress(OSError):
+            os.unlink(self.path)
+
+    @staticmethod
+    def size_for(files: int) -> int:
+        """Room for a manifest of ``files`` entries (about 400 bytes each, written as a whole new copy)."""
+        return 64 * 1024 + 1024 * files
 
 
 class _Manifest:

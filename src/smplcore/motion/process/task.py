@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import errno
 import fnmatch
 import os
 import secrets
@@ -18,6 +19,22 @@ import numpy as np
 from smplcore.motion.process.options import DEFAULT_EXCLUDE, ProcessOptions, _apply_axes
 
 TMP_SUFFIX = ".smplcore-tmp"
+# The errors that mean "no room to write": no space left, over quota, over the file-size limit.
+DISK_FULL_ERRNOS = frozenset(
+    code for code in (errno.ENOSPC, getattr(errno, "EDQUOT", None), errno.EFBIG) if code is not None
+)
+NOT_DONE = "not_done"  # manifest status of a file a stopped run did not finish (a rerun does it)
+
+
+def is_disk_full(exc: BaseException) -> bool:
+    """Whether ``exc`` says the disk (or quota, or file-size limit) has no room for what was written."""
+    return isinstance(exc, OSError) and exc.errno in DISK_FULL_ERRNOS
+
+
+def disk_full_reason(exc: OSError, what: str) -> str:
+    """One line: ``disk full writing <what>: No space left on device [errno ENOSPC]``."""
+    name = errno.errorcode.get(exc.errno or 0, str(exc.errno))
+    return f"disk full writing {what}: {exc.strerror or exc} [errno {name}]"
 
 
 @dataclass(frozen=True)
@@ -75,7 +92,12 @@ class WorkerState:
 
 
 def process_file(task: Task, state: WorkerState) -> dict[str, Any]:
-    """Process one sequence; never raises for bad data: returns a manifest entry (status done/skipped)."""
+    """Process one sequence; never raises for bad data: returns a manifest entry.
+
+    The entry's status is ``done``, ``skipped`` (bad data, with the ``reason``) or, when the output
+    could not be written for lack of space (ENOSPC, EDQUOT, EFBIG), ``not_done`` with ``disk_full``
+    set: the run stops there, and a rerun after freeing space does the file.
+    """
     from smplcore.motion import resample as rs
     from smplcore.motion.models import pick_gender
     from smplcore.motion.sequence import load_motion
@@ -146,6 +168,11 @@ def process_file(task: Task, state: WorkerState) -> dict[str, Any]:
             gender=loaded.gender,
             model_file=str(loaded.path),
         )
+    except OSError as exc:
+        if is_disk_full(exc):
+            entry.update(status=NOT_DONE, disk_full=True, reason=disk_full_reason(exc, task.output))
+        else:
+            entry["reason"] = _reason(exc)
     except Exception as exc:  # noqa: BLE001 -- any failure of one file is reported, never fatal
         entry["reason"] = _reason(exc)
     entry["seconds"] = round(time.perf_counter() - start, 4)
