@@ -7,8 +7,8 @@ import pytest
 
 import fakes
 from smplcore.errors import ModelFileError
-from smplcore.motion import Motion, find_model_file, load_motion, pick_gender, resample_plan, save_motion
-from smplcore.motion.models import Evaluator, ModelCache, normalize_gender
+from smplcore.motion import Motion, load_motion, pick_gender, resample_plan, save_motion
+from smplcore.motion.models import Evaluator, ModelCache, model_file, normalize_gender
 from smplcore.motion.resample import quat_to_rotvec, rotvec_to_quat, slerp_rotvec
 from smplcore.motion.synthetic import random_arrays, write_sequence
 
@@ -162,16 +162,16 @@ def test_gender_rules():
         normalize_gender("robot")
 
 
-def test_find_model_file_in_smplx_and_amass_layouts(tmp_path):
+def test_model_file_in_smplx_and_amass_layouts(tmp_path):
     smplx_style = fakes.write_smplh(tmp_path / "models" / "smplh", "female", "npz", amass=True)
     amass_style = fakes.write_smplh(tmp_path / "models" / "smplh", "male", "npz", amass=True, official_name=True)
     root = tmp_path / "models"
-    assert find_model_file(root, "smplh", "female") == smplx_style
-    assert find_model_file(root, "smplh", "male") == amass_style
-    assert find_model_file(root / "smplh", "smplh", "male") == amass_style  # the type folder itself
-    assert find_model_file(smplx_style, "smplh", "male") == smplx_style  # a file serves every gender
+    assert model_file(root, "smplh", "female") == smplx_style
+    assert model_file(root, "smplh", "male") == amass_style
+    assert model_file(root / "smplh", "smplh", "male") == amass_style  # the type folder itself
+    assert model_file(smplx_style, "smplh", "male") == smplx_style  # a file serves every gender
     with pytest.raises(ModelFileError, match=r"no neutral SMPL\+H model .*smplh/neutral/model.npz"):
-        find_model_file(root, "smplh", "neutral")
+        model_file(root, "smplh", "neutral")
 
     cache = ModelCache(root, backend="numpy")
     f, m = cache.get("smplh", "female"), cache.get("smplh", "male")

@@ -7,13 +7,15 @@ import errno
 import json
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from smplcore.motion.process.options import ProcessError
-from smplcore.motion.process.task import TMP_SUFFIX, _now, atomic_write
+from smplcore.motion.process.report import DiskFullError
+from smplcore.motion.process.task import TMP_SUFFIX, _now, atomic_write, disk_full_reason, is_disk_full
 
 MANIFEST_NAME = "manifest.json"
 LOCK_NAME = ".smplcore-process.lock"
@@ -65,7 +67,7 @@ def _locked(output_dir: Path):
         fcntl = None
     path = output_dir / LOCK_NAME
     while True:
-        fh = open(path, "a+")
+        fh = _disk_full_is_fatal(lambda: open(path, "a+"), output_dir, "the lock file")
         if fcntl is None:
             break
         try:
@@ -83,15 +85,30 @@ def _locked(output_dir: Path):
             break
         fh.close()  # the run that held it removed it: lock the new one
     try:
-        fh.seek(0)
-        fh.truncate()
-        fh.write(f"{os.getpid()}\n")
-        fh.flush()
+
+        def write_pid() -> None:
+            fh.seek(0)
+            fh.truncate()
+            fh.write(f"{os.getpid()}\n")
+            fh.flush()
+
+        _disk_full_is_fatal(write_pid, output_dir, "the lock file")
         yield
     finally:
         with contextlib.suppress(OSError):
             os.unlink(path)
-        fh.close()
+        with contextlib.suppress(OSError):  # a pid that did not fit on a full disk is not written again
+            fh.close()
+
+
+def _disk_full_is_fatal(action: Callable[[], Any], output_dir: Path, what: str) -> Any:
+    """``action()``, a disk-full error from it becoming a one-line :class:`DiskFullError`."""
+    try:
+        return action()
+    except OSError as exc:
+        if not is_disk_full(exc):
+            raise
+        raise DiskFullError(f"{output_dir}: {disk_full_reason(exc, what)}; free some space and rerun") from None
 
 
 def _locked_message(output_dir: Path, path: Path, holder: str) -> str:

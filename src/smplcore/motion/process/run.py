@@ -105,7 +105,7 @@ def process_tree(
         preflight.check_main_guard()
     with _disk_full_at_start(output_dir, "the output folder"):
         output_dir.mkdir(parents=True, exist_ok=True)
-    with _disk_full_at_start(output_dir, "the lock file"), _locked(output_dir):
+    with _locked(output_dir):
         summary = _run_locked(input_dir, output_dir, options, workers, ray_address, overwrite, exclude, progress,
                               manifest_interval, warn_bytes)  # fmt: skip
     if check and summary.exit_code != 0:
