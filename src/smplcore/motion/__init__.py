@@ -23,7 +23,7 @@ from smplcore.motion.process import (
 )
 from smplcore.motion.resample import ResamplePlan
 from smplcore.motion.resample import plan as resample_plan
-from smplcore.motion.sequence import POSE_WIDTH, Motion, load_motion, save_motion
+from smplcore.motion.sequence import POSE_WIDTH, Motion, load_motion, motion_from_arrays, save_motion
 
 __all__ = [
     "EXIT_DISK_FULL",
@@ -39,6 +39,7 @@ __all__ = [
     "ResamplePlan",
     "Summary",
     "load_motion",
+    "motion_from_arrays",
     "options_from_recipe",
     "pick_gender",
     "process_file",

@@ -14,6 +14,7 @@ import numpy as np
 
 from smplcore.motion.process.options import ProcessError, ProcessOptions
 from smplcore.motion.process.task import Task
+from smplcore.motion.sequence import FPS_KEYS
 
 GUARD_HELP = (
     'put the call under `if __name__ == "__main__":` (as in docs/motion.md), or pass workers=0 to run in this process'
@@ -122,7 +123,7 @@ def input_frames(path: str | Path) -> tuple[int, int, float | None] | None:
             with archive.open("poses.npy") as fh:
                 shape = _npy_header_shape(fh)
             fps = None
-            for key in ("mocap_framerate", "mocap_frame_rate", "fps", "frame_rate"):
+            for key in FPS_KEYS:
                 if f"{key}.npy" in names and archive.getinfo(f"{key}.npy").file_size < 4096:
                     with archive.open(f"{key}.npy") as fh:
                         fps = float(np.lib.format.read_array(fh, allow_pickle=False).reshape(-1)[0])
