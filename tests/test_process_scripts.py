@@ -71,6 +71,16 @@ def test_a_worker_reimporting_an_unguarded_script_says_so_and_the_script_fails(t
     assert not (tmp_path / "joints" / LOCK_NAME).exists()
 
 
+def test_a_script_read_from_stdin_is_refused_with_workers(tmp_path):
+    """Workers cannot import a main script that is not a file: said at once, not as dead workers."""
+    write_tree(tmp_path / "amass", SEQUENCES)
+    code = 'from smplcore.motion import process_tree\nprocess_tree("amass", "joints", workers=2)\n'
+    done = subprocess.run([sys.executable, "-"], input=code, cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 1
+    assert "the main script '<stdin>' is not a file" in done.stderr and "workers=0" in done.stderr
+    assert "worker process died" not in done.stderr
+
+
 def test_the_guarded_script_of_the_docs_runs_with_workers(tmp_path):
     write_tree(tmp_path / "amass", SEQUENCES)
     done = _script(
@@ -189,3 +199,20 @@ def test_ctrl_c_ends_a_vertex_run_promptly(tmp_path, workers):
     assert not list(out.rglob("*.npz")), "a file finished after Ctrl-C"
     assert json.loads((out / "manifest.json").read_text())["status"] == "interrupted"
     assert not (out / LOCK_NAME).exists() and not [p for p in out.iterdir() if p.name.startswith(".")]
+
+
+@pytest.mark.parametrize("index", [0, 1])
+def test_the_python_blocks_of_docs_motion_run_as_scripts(tmp_path, index):
+    import re
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "motion.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"```python\n(.*?)```", text, re.S)
+    assert len(blocks) == 2
+    (tmp_path / "block.py").write_text(blocks[index])
+    done = subprocess.run([sys.executable, "block.py"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    first = done.stdout.splitlines()[0]
+    assert first == ("smplh male 120.0 240" if index == 0 else first)
+    if index == 1:
+        assert first.split()[0] == "2" and first.split()[-1] == "0"  # 2 done, exit code 0
+        assert (tmp_path / "joints/CMU/01/01_01_poses.npz").exists()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ast
 import multiprocessing
+import os
 import sys
 import zipfile
 from collections.abc import Iterable
@@ -55,8 +56,13 @@ def check_main_guard() -> None:
     """
     main = sys.modules.get("__main__")
     path = getattr(main, "__file__", None)
-    if main is None or not path or not str(path).endswith(".py"):
+    if main is None or not path:
         return
+    if getattr(getattr(main, "__spec__", None), "name", None) is None and not os.path.isfile(path):
+        raise ProcessError(
+            f"the main script {path!r} is not a file: worker processes import the main script before they "
+            "start, and cannot import this one; save the code as a .py file and run that, or pass workers=0"
+        )
     frame: Any = sys._getframe(1)
     line = None
     while frame is not None:
