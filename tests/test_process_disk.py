@@ -116,3 +116,34 @@ def test_a_disk_full_at_start_is_one_clear_line(small_disk, tmp_path):
     assert len(lines) == 1, done.stderr
     assert lines[0].startswith("smplcore process: ") and "disk full" in lines[0] and "free some space" in lines[0]
     assert done.stdout == ""
+
+
+@pytest.mark.parametrize("code", ["EDQUOT", "ENOSPC", "EFBIG"])
+def test_every_no_room_error_stops_the_run_in_python(tmp_path, monkeypatch, code):
+    """In-process: the second output does not fit; ProcessFailed (or, with check=False, the summary) says so."""
+    import errno
+
+    from smplcore.motion import ProcessFailed, process_tree
+    from smplcore.motion.process import task as task_module
+
+    write_tree(tmp_path / "in", SEQUENCES[:4], seed=4)
+    real = task_module.atomic_write
+    calls = []
+
+    def full_after_one(path, write):
+        calls.append(path)
+        if len(calls) > 1:
+            raise OSError(getattr(errno, code), os.strerror(getattr(errno, code)))
+        real(path, write)
+
+    monkeypatch.setattr(task_module, "atomic_write", full_after_one)
+    with pytest.raises(ProcessFailed, match=f"stopped: disk full writing .*{code}") as info:
+        process_tree(tmp_path / "in", tmp_path / "out", workers=0, progress=False)
+    summary = info.value.summary
+    assert (summary.done, summary.not_done, summary.skipped, summary.exit_code) == (1, 3, [], EXIT_DISK_FULL)
+    assert len(calls) == 2  # no file started after the disk filled
+    manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
+    assert manifest["status"] == "stopped" and manifest["totals"]["not_done"] == 3
+    monkeypatch.setattr(task_module, "atomic_write", real)
+    again = process_tree(tmp_path / "in", tmp_path / "out", workers=0, progress=False)
+    assert (again.done, again.existing, again.exit_code) == (3, 1, 0)

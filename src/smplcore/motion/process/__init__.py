@@ -10,11 +10,19 @@ Guarantees
   none. Leftover temporary files (``.NAME.<pid>-<hex>.smplcore-tmp``) are removed by the next run.
 * **Resumable.** An output that exists is complete, and is not recomputed (``overwrite=True``
   recomputes everything). A rerun with settings that would change the outputs is refused: the
-  settings are kept in the manifest.
+  settings are kept in the manifest (a run that wrote no output does not pin them).
 * **Never aborts on bad data.** A truncated, inconsistent or NaN-holding input (or one whose
   gendered model is missing) is reported with its path and reason, counted, recorded in the
-  manifest and skipped; the summary's ``exit_code`` is 1 when anything was skipped.
-* **One writer.** A lock file in the output folder stops two runs from writing the same tree.
+  manifest and skipped; the summary's ``exit_code`` is 1 when anything was skipped, and
+  :func:`process_tree` raises :class:`ProcessFailed` unless ``check=False``.
+* **Stops cleanly on a full disk.** ENOSPC, EDQUOT or EFBIG while writing: no new file starts,
+  finished outputs stay, the rest are ``not_done`` in a valid final manifest (room for it is
+  reserved at the start), ``exit_code`` is :data:`EXIT_DISK_FULL` (3); a rerun resumes. A disk
+  full at the start raises :class:`DiskFullError` (one line).
+* **One writer.** A lock file in the output folder (removed at the end) stops two runs from
+  writing the same tree.
+* **Scripts.** A pool run started at the top level of a main script without
+  ``if __name__ == "__main__":`` is refused before any worker starts (workers import the script).
 
 Parallelism: ``workers`` processes (forked from a fork server, or spawned; one BLAS/OpenMP thread
 each, torch threads = CPUs / workers), each keeping one loaded model per (model type, gender) and
