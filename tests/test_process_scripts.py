@@ -161,7 +161,9 @@ def test_size_warning_before_writing_says_how_much(tmp_path):
     estimate = estimate_output_bytes(tasks, options)
     vertices = 6890 if not OPEN_MODEL_PATH.exists() else int(np.load(OPEN_MODEL_PATH)["v_template"].shape[0])
     assert estimate == 150 * ((24 + vertices) * 3 * 4 + 8)  # 150 frames at 30 fps
-    with pytest.warns(OutputSizeWarning, match=r"about 0\.\d GB will be written to .*out \(1 files\); the disk has"):
+    with pytest.warns(
+        OutputSizeWarning, match=r"about 24\.1 MB will be written to .*out \(1 files\); the disk has [\d.]+ [MG]B free"
+    ):
         process_tree(tmp_path / "in", tmp_path / "out", options, workers=0, progress=False, warn_bytes=1e6)
     written = (tmp_path / "out" / "long_poses.npz").stat().st_size
     assert estimate <= written <= estimate * 1.5  # the estimate is the arrays' size (faces and names besides)
@@ -217,3 +219,15 @@ def test_the_python_blocks_of_docs_motion_run_as_scripts(tmp_path, index):
     else:
         assert lines[0].split()[:2] == ["2", "0"] and lines[0].split()[-1] == "0"  # 2 done, 0 existing, exit 0
         assert (tmp_path / "joints/CMU/01/01_01_poses.npz").exists()
+
+
+def test_the_cli_prints_the_size_warning_as_one_line(tmp_path, monkeypatch, capsys):
+    from smplcore.cli import main
+    from smplcore.motion.process import run
+
+    write_sequence(tmp_path / "in" / "long_poses.npz", 300, 60.0, "smplh", "male")
+    monkeypatch.setattr(run, "DEFAULT_WARN_BYTES", 1e4)  # the run writes about 89 kB
+    assert main(["process", str(tmp_path / "in"), str(tmp_path / "out"), "--workers", "0", "--quiet"]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith("smplcore process: warning: about 0.1 MB will be written to ")
+    assert "(1 files); the disk has" in err[0]

@@ -159,6 +159,7 @@ def run_process(args: argparse.Namespace) -> int:
         options_from_recipe,
         process_tree,
     )
+    from smplcore.motion.process import run as run_module
 
     options = options_from_recipe(
         args.recipe,
@@ -193,6 +194,7 @@ def run_process(args: argparse.Namespace) -> int:
                 exclude=args.exclude or DEFAULT_EXCLUDE,
                 progress=not args.quiet,
                 check=False,
+                warn_bytes=run_module.DEFAULT_WARN_BYTES,
             )
         except KeyboardInterrupt:
             print("smplcore process: interrupted; finished outputs are kept, rerun to resume", file=sys.stderr)

@@ -61,6 +61,7 @@ def _locked(output_dir: Path):
     that is gone: after locking, each run checks that the path is still the file it locked, and
     starts over if not.
     """
+    fcntl: Any
     try:
         import fcntl
     except ImportError:  # Windows: no lock

@@ -185,10 +185,14 @@ def _open_vertices() -> int:
         return 6890
 
 
+def _size(n: float) -> str:
+    return f"{n / 1e9:.1f} GB" if n >= 1e9 else f"{n / 1e6:.1f} MB"
+
+
 def size_message(estimate: int, output_dir: Path, files: int, free: int | None) -> str:
-    text = f"about {estimate / 1e9:.1f} GB will be written to {output_dir} ({files} files)"
+    text = f"about {_size(estimate)} will be written to {output_dir} ({files} files)"
     if free is not None:
-        text += f"; the disk has {free / 1e9:.1f} GB free"
+        text += f"; the disk has {_size(free)} free"
         if free < estimate:
             text += " (not enough: the run will stop when the disk is full; a rerun after freeing space resumes)"
     return text

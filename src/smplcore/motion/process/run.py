@@ -249,7 +249,7 @@ def _run_locked(
         elif workers == 0:
             _run_inline(todo, options, on_result, tick, _stopping(summary))
         else:
-            _run_pool(todo, options, min(workers, len(todo)), on_result, tick, _stopping(summary))
+            _run_pool(todo, options, min(workers or 1, len(todo)), on_result, tick, _stopping(summary))
         status = "finished"
         if summary.stopped:
             status = "stopped"

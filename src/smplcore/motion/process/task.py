@@ -157,7 +157,7 @@ def process_file(task: Task, state: WorkerState) -> dict[str, Any]:
                 arrays["vertices"] = verts.astype(dtype, copy=False)
                 arrays["faces"] = np.asarray(loaded.model.faces, dtype=np.int32)
             save = np.savez_compressed if options.compress else np.savez
-            atomic_write(Path(task.output), lambda fh: save(fh, **arrays))
+            atomic_write(Path(task.output), lambda fh: save(fh, **arrays))  # type: ignore[arg-type]
         entry.update(
             status="done",
             output=_relative_output(task),
