@@ -7,8 +7,8 @@ import pytest
 
 import fakes
 from smplcore.errors import ModelFileError
-from smplcore.motion import Motion, find_model_file, load_motion, pick_gender, resample_plan, save_motion
-from smplcore.motion.models import Evaluator, ModelCache, normalize_gender
+from smplcore.motion import Motion, load_motion, motion_from_arrays, pick_gender, resample_plan, save_motion
+from smplcore.motion.models import Evaluator, ModelCache, model_file, normalize_gender
 from smplcore.motion.resample import quat_to_rotvec, rotvec_to_quat, slerp_rotvec
 from smplcore.motion.synthetic import random_arrays, write_sequence
 
@@ -75,6 +75,21 @@ def test_bad_files_name_file_and_key(tmp_path, damage, key):
     assert info.value.key == key
     if damage == "truncate":
         assert "truncated or corrupt" in str(info.value)
+
+
+def test_a_missing_frame_rate_is_refused_unless_given(tmp_path):
+    """The one AMASS reader's policy: no silent guess of the frame rate; ``default_fps`` gives it."""
+    arrays = random_arrays(12, 60, "smplx", "male")
+    del arrays["mocap_frame_rate"]
+    path = tmp_path / "x.npz"
+    np.savez(path, **arrays)
+    with pytest.raises(ModelFileError, match=r"missing the frame rate .*default_fps") as info:
+        load_motion(path)
+    assert info.value.key == "mocap_frame_rate" and str(path) in str(info.value)  # the key SMPL-X files use
+    assert load_motion(path, default_fps=30.0).fps == 30.0
+    assert motion_from_arrays(arrays, default_fps=25.0).fps == 25.0  # the same reader from arrays
+    stated = random_arrays(12, 60, "smplh", "male")
+    assert motion_from_arrays(stated, default_fps=25.0).fps == 60.0  # the file's rate wins
 
 
 def test_save_load_round_trip(tmp_path):
@@ -162,16 +177,16 @@ def test_gender_rules():
         normalize_gender("robot")
 
 
-def test_find_model_file_in_smplx_and_amass_layouts(tmp_path):
+def test_model_file_in_smplx_and_amass_layouts(tmp_path):
     smplx_style = fakes.write_smplh(tmp_path / "models" / "smplh", "female", "npz", amass=True)
     amass_style = fakes.write_smplh(tmp_path / "models" / "smplh", "male", "npz", amass=True, official_name=True)
     root = tmp_path / "models"
-    assert find_model_file(root, "smplh", "female") == smplx_style
-    assert find_model_file(root, "smplh", "male") == amass_style
-    assert find_model_file(root / "smplh", "smplh", "male") == amass_style  # the type folder itself
-    assert find_model_file(smplx_style, "smplh", "male") == smplx_style  # a file serves every gender
+    assert model_file(root, "smplh", "female") == smplx_style
+    assert model_file(root, "smplh", "male") == amass_style
+    assert model_file(root / "smplh", "smplh", "male") == amass_style  # the type folder itself
+    assert model_file(smplx_style, "smplh", "male") == smplx_style  # a file serves every gender
     with pytest.raises(ModelFileError, match=r"no neutral SMPL\+H model .*smplh/neutral/model.npz"):
-        find_model_file(root, "smplh", "neutral")
+        model_file(root, "smplh", "neutral")
 
     cache = ModelCache(root, backend="numpy")
     f, m = cache.get("smplh", "female"), cache.get("smplh", "male")

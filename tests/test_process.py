@@ -19,7 +19,8 @@ from smplcore import BodyModel
 from smplcore.cli import main
 from smplcore.io.locate import OPEN_MODEL_PATH
 from smplcore.motion import ProcessOptions, load_motion, options_from_recipe, process_tree
-from smplcore.motion.process import LOCK_NAME, TMP_SUFFIX, ProcessError, _locked
+from smplcore.motion.process import LOCK_NAME, TMP_SUFFIX, ProcessError
+from smplcore.motion.process.manifest import _locked
 from smplcore.motion.synthetic import random_arrays, write_sequence, write_tree
 
 GOOD = [  # (relative path, frames, fps, gender)
@@ -74,7 +75,7 @@ def tree(tmp_path_factory) -> Path:
 def first_run(tree, models, tmp_path_factory):
     out = tmp_path_factory.mktemp("out")
     options = ProcessOptions(model_path=str(models), fps=20.0, backend="numpy")
-    summary = process_tree(tree, out, options, workers=0, progress=False)
+    summary = process_tree(tree, out, options, workers=0, progress=False, check=False)
     return out, options, summary
 
 
@@ -125,7 +126,7 @@ def test_rerun_skips_everything_done(first_run, tree):
     stamps = {rel: (out / rel).stat().st_mtime_ns for rel, *_ in GOOD}
     stale = out / "CMU" / f".01_01_poses.npz.123-abcdef01{TMP_SUFFIX}"  # left by a killed run
     stale.write_bytes(b"partial")
-    again = process_tree(tree, out, options, workers=0, progress=False)
+    again = process_tree(tree, out, options, workers=0, progress=False, check=False)
     assert (again.done, again.existing, len(again.skipped)) == (0, 3, 3) and again.exit_code == 1
     assert {rel: (out / rel).stat().st_mtime_ns for rel in stamps} == stamps
     assert not stale.exists()
@@ -137,20 +138,23 @@ def test_rerun_skips_everything_done(first_run, tree):
 def test_rerun_with_other_settings_is_refused(first_run, tree):
     out, options, _ = first_run
     with pytest.raises(ProcessError, match="other settings"):
-        process_tree(tree, out, ProcessOptions(model_path=options.model_path, fps=30.0), workers=0, progress=False)
+        process_tree(
+            tree, out, ProcessOptions(model_path=options.model_path, fps=30.0), workers=0, progress=False, check=False
+        )
 
 
 def test_locked_output_folder_is_refused(tree, models, tmp_path):
     with _locked(tmp_path):
         with pytest.raises(ProcessError, match="another"):
-            process_tree(tree, tmp_path, ProcessOptions(model_path=str(models)), workers=0, progress=False)
-    assert (tmp_path / LOCK_NAME).exists()
+            process_tree(tree, tmp_path, ProcessOptions(model_path=str(models)), workers=0, progress=False, check=False)
+        assert (tmp_path / LOCK_NAME).read_text() == f"{os.getpid()}\n"  # the holder's pid
+    assert not (tmp_path / LOCK_NAME).exists()  # removed when the run ends
 
 
 def test_worker_processes_give_the_same_outputs(first_run, tree, models, tmp_path):
     """Two spawned workers agree with the in-process run, bit for bit."""
     out, options, _ = first_run
-    summary = process_tree(tree, tmp_path, options, workers=2, progress=False)
+    summary = process_tree(tree, tmp_path, options, workers=2, progress=False, check=False)
     assert (summary.done, len(summary.skipped), summary.workers) == (3, 3, 2)
     for rel, *_ in GOOD:
         np.testing.assert_array_equal(_load(tmp_path / rel)["joints"], _load(out / rel)["joints"])
@@ -159,7 +163,7 @@ def test_worker_processes_give_the_same_outputs(first_run, tree, models, tmp_pat
 def test_torch_backend_agrees(first_run, tree, models, tmp_path):
     pytest.importorskip("torch")
     out, options, _ = first_run
-    summary = process_tree(tree, tmp_path, replace(options, backend="torch"), workers=0, progress=False)
+    summary = process_tree(tree, tmp_path, replace(options, backend="torch"), workers=0, progress=False, check=False)
     assert summary.done == 3
     for rel, *_ in GOOD:
         np.testing.assert_allclose(_load(tmp_path / rel)["joints"], _load(out / rel)["joints"], atol=2e-5)
@@ -265,7 +269,7 @@ def test_humanml3d_recipe_matches_its_extraction(models, tmp_path):
     # The 22-joint arrays directly:
     out22 = tmp_path / "joints22"
     options = options_from_recipe("humanml3d", model_path=str(models), num_joints=22, backend="numpy")
-    assert process_tree(src, out22, options, workers=0, progress=False).exit_code == 0
+    assert process_tree(src, out22, options, workers=0, progress=False, check=False).exit_code == 0
     np.testing.assert_array_equal(np.load(out22 / "KIT/c_poses.npy"), np.load(out / "KIT/c_poses.npy")[:, :22])
 
 
@@ -386,7 +390,7 @@ def test_kill_and_resume(models, tmp_path):
     assert manifest["totals"]["done"] + manifest["totals"]["exists"] == len(sequences)
 
     options = ProcessOptions(model_path=str(models / "smplh" / "SMPLH_FEMALE.npz"), backend="numpy")
-    assert process_tree(src, ref, options, workers=0, progress=False).exit_code == 0
+    assert process_tree(src, ref, options, workers=0, progress=False, check=False).exit_code == 0
     for rel, *_ in sequences:
         got, expected = _load(out / rel), _load(ref / rel)
         assert sorted(got) == sorted(expected)

@@ -17,7 +17,9 @@ examples:
 The model folder may be laid out like smplx (body_models/smplh/SMPLH_FEMALE.npz) or like AMASS
 (body_models/smplh/female/model.npz); each file uses the gendered model it names. A rerun skips
 finished outputs; bad input files are reported, skipped and make the exit status 1.
-See docs/motion.md."""
+Exit status: 0 all done, 1 files skipped (bad input), 2 bad arguments or folder, 3 the disk is full
+(finished outputs are kept, the rest are marked not done; free space and rerun to resume),
+130 interrupted. See docs/motion.md."""
 
 
 def _positive_float(text: str) -> float:
@@ -147,7 +149,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run_process(args: argparse.Namespace) -> int:
-    from smplcore.motion.process import DEFAULT_EXCLUDE, options_from_recipe, process_tree
+    import warnings
+
+    from smplcore.motion.process import (
+        DEFAULT_EXCLUDE,
+        EXIT_DISK_FULL,
+        DiskFullError,
+        OutputSizeWarning,
+        options_from_recipe,
+        process_tree,
+    )
+    from smplcore.motion.process import run as run_module
 
     options = options_from_recipe(
         args.recipe,
@@ -168,19 +180,42 @@ def run_process(args: argparse.Namespace) -> int:
         backend=args.backend,
         chunk=args.batch_frames or None,
     )
-    try:
-        summary = process_tree(
-            args.input,
-            args.output,
-            options,
-            workers=args.workers,
-            ray_address=args.ray,
-            overwrite=args.overwrite,
-            exclude=args.exclude or DEFAULT_EXCLUDE,
-            progress=not args.quiet,
-        )
-    except KeyboardInterrupt:
-        print("smplcore process: interrupted; finished outputs are kept, rerun to resume", file=sys.stderr)
-        return 130
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", OutputSizeWarning)
+        warnings.showwarning = _size_warning_as_one_line(warnings.showwarning)
+        try:
+            summary = process_tree(
+                args.input,
+                args.output,
+                options,
+                workers=args.workers,
+                ray_address=args.ray,
+                overwrite=args.overwrite,
+                exclude=args.exclude or DEFAULT_EXCLUDE,
+                progress=not args.quiet,
+                check=False,
+                warn_bytes=run_module.DEFAULT_WARN_BYTES,
+            )
+        except KeyboardInterrupt:
+            print("smplcore process: interrupted; finished outputs are kept, rerun to resume", file=sys.stderr)
+            return 130
+        except DiskFullError as exc:
+            print(f"smplcore process: {exc}", file=sys.stderr)
+            return EXIT_DISK_FULL
     print(summary.format())
+    if summary.stopped:
+        print(f"smplcore process: stopped: {summary.stopped}; free some space and rerun to resume", file=sys.stderr)
     return summary.exit_code
+
+
+def _size_warning_as_one_line(show):
+    """``warnings.showwarning`` that prints OutputSizeWarning as one line (other warnings as ``show`` does)."""
+    from smplcore.motion.process import OutputSizeWarning
+
+    def showwarning(message, category, filename, lineno, file=None, line=None):  # noqa: ANN001, ANN202
+        if issubclass(category, OutputSizeWarning):
+            print(f"smplcore process: warning: {message}", file=sys.stderr, flush=True)
+        else:
+            show(message, category, filename, lineno, file, line)
+
+    return showwarning

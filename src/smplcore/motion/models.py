@@ -1,10 +1,11 @@
 """The body model a motion file names, found in a folder, loaded once, and evaluated in batches.
 
-A motion says its model type (SMPL+H, SMPL-X, ...) and its gender; :func:`find_model_file` finds
-the matching file in a model folder laid out either like smplx (``models/smplh/SMPLH_FEMALE.npz``)
-or like AMASS (``body_models/smplh/female/model.npz``). :class:`ModelCache` keeps one loaded model
-per (model type, gender), and :class:`Evaluator` turns a :class:`~smplcore.motion.Motion` into
-joints (and vertices) in chunks of frames, with NumPy or, when available, PyTorch on the CPU.
+A motion says its model type (SMPL+H, SMPL-X, ...) and its gender; :func:`model_file` finds the
+matching file (through :mod:`smplcore.io.locate`) in a model folder laid out either like smplx
+(``models/smplh/SMPLH_FEMALE.npz``) or like AMASS (``body_models/smplh/female/model.npz``).
+:class:`ModelCache` keeps one loaded model per (model type, gender), and :class:`Evaluator` turns a
+:class:`~smplcore.motion.Motion` into joints (and vertices) in chunks of frames, with NumPy or, when
+available, PyTorch on the CPU.
 """
 
 from __future__ import annotations
@@ -57,51 +58,48 @@ def pick_gender(file_gender: str, rule: str = "file") -> str:
     return g
 
 
-def find_model_file(
-    model_path: str | Path | None, model_type: str, gender: str = "neutral", ext: str | None = None
-) -> Path:
-    """The model file for ``model_type`` and ``gender`` in ``model_path``.
+def model_file(model_path: str | Path | None, model_type: str, gender: str = "neutral", ext: str | None = None) -> Path:
+    """The model file for ``model_type`` and ``gender``: :func:`smplcore.io.locate.locate_model_file` (the one
+    locator), for ``ext`` or, when None, for ``npz`` then ``pkl``; then, in a folder, the AMASS /
+    human_body_prior layout ``folder/[T/]g/model.ext``, which the locator does not know yet.
 
     ``model_path`` is a model file (used for every gender), a folder, or None for the packaged open
-    model (``model_type="open"``). In a folder, with ``T`` the model type's folder name and ``G`` the
-    gender, these are tried in order (``ext`` None tries ``npz`` then ``pkl``)::
-
-        folder/T/SMPLH_G.ext     folder/SMPLH_G.ext          (smplx layout)
-        folder/T/g/model.ext     folder/g/model.ext          (AMASS / human_body_prior layout)
+    model (``model_type="open"``).
 
     Raises
     ------
     ModelFileError
-        naming the folder, the model type, the gender and the candidates tried.
+        naming the folder, the model type, the gender and the paths tried.
     """
+    from smplcore.io.locate import locate_model_file
+
     spec = get_spec(model_type)
-    if spec.model_type == "open":
-        if model_path is None or str(model_path) == "" or Path(model_path).is_dir():
-            return OPEN_MODEL_PATH
-        return Path(model_path)
     if model_path is None or str(model_path) == "":
+        if spec.model_type == "open":
+            return OPEN_MODEL_PATH
         raise ValueError(
             f"model_path: a {spec.display_name} model file or folder is needed "
             "(or model_type='open' for the packaged open model)"
         )
     path = Path(model_path).expanduser()
-    if path.is_file():
-        return path
-    if not path.is_dir():
+    if not path.exists():
         raise ModelFileError(path, "no such file or folder")
     g = normalize_gender(gender)
     exts = [ext.lstrip(".").lower()] if ext else ["npz", "pkl"]
-    stem = spec.file_stem.format(GENDER=g.upper(), SIDE="RIGHT")
-    candidates = []
-    for base in (path / spec.model_type, path):
-        candidates += [base / f"{stem}.{e}" for e in exts]
-    for base in (path / spec.model_type, path):
-        candidates += [base / g / f"model.{e}" for e in exts]
-    for candidate in candidates:
+    tried: list[str] = []
+    for e in exts:
+        try:
+            return locate_model_file(path, spec.model_type, gender=g, ext=e)
+        except ModelFileError as exc:
+            tried.append(
+                str(Path(exc.path).relative_to(path)) if Path(exc.path).is_relative_to(path) else str(exc.path)
+            )
+    amass = [base / g / f"model.{e}" for base in (path / spec.model_type, path) for e in exts]
+    for candidate in amass:  # TODO(io/locate): move this layout into locate_model_file
         if candidate.is_file():
             return candidate
-    tried = ", ".join(str(c.relative_to(path)) for c in candidates)
-    raise ModelFileError(path, f"no {g} {spec.display_name} model (tried {tried})")
+    tried += [str(c.relative_to(path)) for c in amass]
+    raise ModelFileError(path, f"no {g} {spec.display_name} model (tried {', '.join(tried)})")
 
 
 @dataclass
@@ -151,7 +149,7 @@ def resolve_backend(backend: str, vertices: bool = False) -> str:
 
 @dataclass
 class ModelCache:
-    """One loaded model per (model type, gender), as found by :func:`find_model_file`.
+    """One loaded model per (model type, gender), as found by :func:`model_file`.
 
     Models are evaluated as AMASS poses need: ``use_pca=False, flat_hand_mean=True`` (absolute
     hand poses). ``num_betas`` None keeps every shape component the file holds.
@@ -175,7 +173,7 @@ class ModelCache:
         key = (spec.model_type, "any" if fixed else normalize_gender(gender))
         if key in self.models:
             return self.models[key]
-        path = find_model_file(self.model_path, key[0], "neutral" if fixed else key[1], self.ext)
+        path = model_file(self.model_path, key[0], "neutral" if fixed else key[1], self.ext)
         data = load_model(
             path,
             model_type=None if spec.model_type == "open" else spec.model_type,

@@ -9,6 +9,7 @@ are absolute: evaluate them with ``flat_hand_mean=True`` and ``use_pca=False``.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -204,16 +205,36 @@ def _read_motion_arrays(path: Path) -> dict[str, Any]:
     return out
 
 
-def load_motion(path: str | Path) -> Motion:
+FPS_KEYS = ("mocap_framerate", "mocap_frame_rate", "fps", "frame_rate")  # SMPL+H, SMPL-X, others
+
+
+def load_motion(path: str | Path, *, default_fps: float | None = None) -> Motion:
     """Read an AMASS-style ``.npz`` (SMPL+H, SMPL-X or SMPL poses) without unpickling anything.
+
+    ``default_fps`` is the frame rate of a file that states none; None (the default): such a file
+    is refused (a guessed rate would silently change every resampled output).
 
     Raises
     ------
     ModelFileError
-        naming the file and key: missing keys, inconsistent shapes, NaNs, truncated archives.
+        naming the file and key: missing keys (the frame rate too), inconsistent shapes, NaNs,
+        truncated archives.
     """
     path = Path(path)
-    raw = _read_motion_arrays(path)
+    return motion_from_arrays(_read_motion_arrays(path), source=path, default_fps=default_fps)
+
+
+def motion_from_arrays(
+    raw: Mapping[str, Any], source: str | Path = "<memory>", *, default_fps: float | None = None
+) -> Motion:
+    """A :class:`Motion` from AMASS-style arrays (``poses`` (T, 3 J), ``trans`` (T, 3), ``betas``,
+    ``gender``, a frame rate under one of :data:`FPS_KEYS`, optional ``surface_model_type``,
+    ``expression``, ``dmpls``): the one AMASS reader, used by :func:`load_motion`.
+
+    ``default_fps`` is the frame rate when none of :data:`FPS_KEYS` is there; None: a
+    :class:`ModelFileError` naming ``source`` and the key, saying how to give the rate.
+    """
+    path = source
     for key in ("poses", "trans"):
         if key not in raw:
             raise ModelFileError(path, f"missing key; the file has {sorted(raw)}", key=key)
@@ -229,10 +250,13 @@ def load_motion(path: str | Path) -> Motion:
             f"(expected one of {sorted(_TYPE_BY_WIDTH)})",
             key="poses",
         )
-    fps_key = next((k for k in ("mocap_framerate", "mocap_frame_rate", "fps", "frame_rate") if k in raw), None)
-    if fps_key is None:
+    fps_key = next((k for k in FPS_KEYS if k in raw), None)
+    if fps_key is None and default_fps is None:
         raise ModelFileError(
-            path, "missing the frame rate (mocap_framerate or mocap_frame_rate)", key="mocap_framerate"
+            path,
+            "missing the frame rate (mocap_framerate or mocap_frame_rate); add it to the file, or give "
+            "the rate: load_motion(path, default_fps=...)",
+            key="mocap_frame_rate" if model_type == "smplx" else "mocap_framerate",
         )
     gender = _text(raw.get("gender", "neutral")).strip().lower() or "neutral"
     betas = np.asarray(raw.get("betas", np.zeros(10)), dtype=np.float64).reshape(-1)
@@ -246,10 +270,13 @@ def load_motion(path: str | Path) -> Motion:
             )
         if not np.isfinite(value).all():
             raise ModelFileError(path, "contains NaN or infinite values", key=key)
-    try:
-        fps = float(np.asarray(raw[fps_key], dtype=np.float64).reshape(-1)[0])
-    except (ValueError, TypeError, IndexError):
-        raise ModelFileError(path, f"expected a frame rate, found {raw[fps_key]!r}", key=fps_key) from None
+    if fps_key is None:
+        fps = float(default_fps)  # type: ignore[arg-type]
+    else:
+        try:
+            fps = float(np.asarray(raw[fps_key], dtype=np.float64).reshape(-1)[0])
+        except (ValueError, TypeError, IndexError):
+            raise ModelFileError(path, f"expected a frame rate, found {raw[fps_key]!r}", key=fps_key) from None
     try:
         return Motion(
             poses=poses,
