@@ -15,9 +15,18 @@ from smplcore.engine.landmarks import contour_rows
 from smplcore.family.specs import extra_joint_vertex_ids, get_spec
 
 
-def oracle(data: Any, params: dict[str, np.ndarray], *, num_betas: int = 10, num_expression_coeffs: int = 10,
-           use_pca: bool = True, num_pca_comps: int = 6, flat_hand_mean: bool = False,
-           use_face_contour: bool = False, rotation_matrices: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def oracle(
+    data: Any,
+    params: dict[str, np.ndarray],
+    *,
+    num_betas: int = 10,
+    num_expression_coeffs: int = 10,
+    use_pca: bool = True,
+    num_pca_comps: int = 6,
+    flat_hand_mean: bool = False,
+    use_face_contour: bool = False,
+    rotation_matrices: bool = False,
+) -> tuple[np.ndarray, np.ndarray]:
     """(B, V, 3) vertices and (B, J', 3) output joints (skeleton, extra vertex joints, landmarks), translated."""
     spec = get_spec(data.model_type)
     p = {k: np.asarray(v, np.float64) for k, v in params.items() if v is not None}
@@ -40,8 +49,11 @@ def oracle(data: Any, params: dict[str, np.ndarray], *, num_betas: int = 10, num
     for block in spec.pose_blocks:
         value = p.get(block.name)
         if rotation_matrices:
-            blocks.append(np.broadcast_to(np.eye(3), (batch, block.num_joints, 3, 3)) if value is None
-                          else value.reshape(batch, block.num_joints, 3, 3))
+            blocks.append(
+                np.broadcast_to(np.eye(3), (batch, block.num_joints, 3, 3))
+                if value is None
+                else value.reshape(batch, block.num_joints, 3, 3)
+            )
             continue
         aa = np.zeros((batch, 3 * block.num_joints)) if value is None else value.reshape(batch, -1)
         if block.hand:
@@ -53,12 +65,19 @@ def oracle(data: Any, params: dict[str, np.ndarray], *, num_betas: int = 10, num
                 aa = aa + np.asarray(mean, np.float64)
         blocks.append(reference.rodrigues(aa.reshape(batch, -1, 3)))
     rotmats = np.concatenate(blocks, axis=1)
-    posedirs = None if data.posedirs is None else np.asarray(data.posedirs, np.float64).reshape(
-        -1, data.posedirs.shape[-1]).T
+    posedirs = (
+        None if data.posedirs is None else np.asarray(data.posedirs, np.float64).reshape(-1, data.posedirs.shape[-1]).T
+    )
     verts, joints, _ = reference.forward(
-        np.asarray(data.v_template, np.float64), np.concatenate(dirs, axis=-1), posedirs,
-        np.asarray(data.J_regressor, np.float64), [int(x) for x in data.parents], np.asarray(data.weights, np.float64),
-        np.concatenate(coeffs, axis=1), rotmats)
+        np.asarray(data.v_template, np.float64),
+        np.concatenate(dirs, axis=-1),
+        posedirs,
+        np.asarray(data.J_regressor, np.float64),
+        [int(x) for x in data.parents],
+        np.asarray(data.weights, np.float64),
+        np.concatenate(coeffs, axis=1),
+        rotmats,
+    )
     parts = [joints]
     if spec.extra_joints:
         ids = spec.vertex_ids or dict(zip(_extra_keys(data), data.extra_joint_vertex_ids))

@@ -27,8 +27,14 @@ MODELS = [
     ("flame_neutral_pkl", {"use_face_contour": True}),
     ("open", {}),
 ]
-ORACLE_OPTIONS = ("num_betas", "num_expression_coeffs", "use_pca", "num_pca_comps", "flat_hand_mean",
-                  "use_face_contour")
+ORACLE_OPTIONS = (
+    "num_betas",
+    "num_expression_coeffs",
+    "use_pca",
+    "num_pca_comps",
+    "flat_hand_mean",
+    "use_face_contour",
+)
 
 
 def _model_args(fake_models, key, options):
@@ -149,7 +155,7 @@ def test_gradients_of_every_kernel_agree_and_are_finite_at_zero_pose(fake_models
         params = {k: torch.tensor(v, requires_grad=True) for k, v in _params(model.setup, 2, seed=4).items()}
         params["body_pose"].data.zero_()
         out = model(**params)
-        ((out.vertices ** 2).sum() + (out.joints ** 3).sum()).backward()
+        ((out.vertices**2).sum() + (out.joints**3).sum()).backward()
         grads[kernel] = {k: v.grad for k, v in params.items()}
     for name, g in grads["auto"].items():
         assert torch.isfinite(g).all(), name

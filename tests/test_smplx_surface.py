@@ -24,8 +24,16 @@ CASES = [
     ("smplx", {"use_face_contour": True, "use_pca": False, "num_expression_coeffs": 5}),
     ("mano", {}),
     ("mano", {"is_rhand": False, "num_pca_comps": 12}),
-    ("mano", {"create_global_orient": False, "create_hand_pose": False, "create_betas": False,
-              "create_transl": False, "create_body_pose": False}),
+    (
+        "mano",
+        {
+            "create_global_orient": False,
+            "create_hand_pose": False,
+            "create_betas": False,
+            "create_transl": False,
+            "create_body_pose": False,
+        },
+    ),
     ("flame", {}),
     ("flame", {"use_face_contour": True}),
 ]
@@ -144,9 +152,20 @@ def test_gender_is_the_keyword_as_in_smplx(fake_models):
 
 
 def test_smplx_config_keywords_are_silent_and_typos_get_one_hint(fake_models):
-    config = {"use_face_contour": True, "num_expression_coeffs": 10, "use_pca": False, "flat_hand_mean": True,
-              "create_jaw_pose": True, "num_pca_comps": 12, "is_rhand": True, "use_compressed": False,
-              "kid_template_path": "", "age": "adult", "neck_pose": None, "create_neck_pose": True}
+    config = {
+        "use_face_contour": True,
+        "num_expression_coeffs": 10,
+        "use_pca": False,
+        "flat_hand_mean": True,
+        "create_jaw_pose": True,
+        "num_pca_comps": 12,
+        "is_rhand": True,
+        "use_compressed": False,
+        "kid_template_path": "",
+        "age": "adult",
+        "neck_pose": None,
+        "create_neck_pose": True,
+    }
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         smplcore.create(fake_models["root"], model_type="smpl", **config)

@@ -136,7 +136,7 @@ def evaluate(
             value = given.get(block.name)
             if value is None:
                 value = xp.broadcast_to(zeros, (batch, 3 * block.num_joints))
-            elif block.name in setup.hand_components:
+            elif block.name in setup.pca_blocks:
                 value = rows(block.name, value, batch, setup.pose_width(block.name))
                 value = value @ source.constant(f"hand_components/{block.name}", zeros)
             else:

@@ -83,9 +83,7 @@ class ModelSetup:
 
     @property
     def has_pose_mean(self) -> bool:
-        """Whether a mean pose is added to the full pose (checked once)."""
-        if "has_pose_mean" not in self._cache:
-            self._cache["has_pose_mean"] = bool(np.any(self.pose_mean))
+        """Whether a mean pose is added to the full pose (decided once, at construction)."""
         return self._cache["has_pose_mean"]
 
     def const(self, name: str, array: np.ndarray, like: Any) -> Any:
@@ -99,6 +97,10 @@ class ModelSetup:
         return value
 
     def __post_init__(self) -> None:
+        self._cache["has_pose_mean"] = bool(np.any(self.pose_mean))
+        # plain Python values the forward reads (traceable by torch.compile, unlike NumPy arrays)
+        self._cache["pca_blocks"] = frozenset(self.hand_components)
+        self._cache["pca_widths"] = {k: int(v.shape[0]) for k, v in self.hand_components.items()}
         if self.keypoints is None:
             self.keypoints = Keypoints.build(
                 self.data, self.extra_joint_ids, self.spec.landmarks, self.use_face_contour
@@ -257,9 +259,13 @@ class ModelSetup:
 
     def pose_width(self, block_name: str) -> int:
         """Values per body of a pose block in axis-angle mode (PCA coefficients for PCA hands)."""
-        if block_name in self.hand_components:
-            return self.hand_components[block_name].shape[0]
-        return 3 * self.spec.block(block_name).num_joints
+        widths = self._cache["pca_widths"]
+        return widths[block_name] if block_name in widths else 3 * self.spec.block(block_name).num_joints
+
+    @property
+    def pca_blocks(self) -> frozenset[str]:
+        """The pose blocks given as hand-PCA coefficients."""
+        return self._cache["pca_blocks"]
 
 
 def _check_count(name: str, value: int) -> None:

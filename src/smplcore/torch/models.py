@@ -32,7 +32,16 @@ from smplcore.frontend import SETUP_OPTIONS, ModelSetup, evaluate
 from smplcore.io.model_data import ModelData
 from smplcore.torch.arrays import ModuleArrays
 from smplcore.torch.keywords import split_keywords, warn_unknown
-from smplcore.torch.outputs import Deferred, FLAMEOutput, MANOOutput, ModelOutput, SMPLHOutput, SMPLOutput, SMPLXOutput
+from smplcore.torch.outputs import (
+    Deferred,
+    FLAMEOutput,
+    MANOOutput,
+    ModelOutput,
+    SMPLHOutput,
+    SMPLOutput,
+    SMPLXOutput,
+    lazy,
+)
 
 __all__ = [
     "SMPL",
@@ -347,7 +356,8 @@ class SMPL(nn.Module):
                 shape = shape.clone()  # a later in-place edit must not change it
                 fields["v_shaped"] = Deferred(self._in_current_grad_mode(lambda: self._v_shaped(shape)))
         known = self.OUTPUT.__dataclass_fields__
-        return self.OUTPUT(**{k: v for k, v in fields.items() if k in known})
+        output = self.OUTPUT if not any(type(v) is Deferred for v in fields.values()) else lazy(self.OUTPUT)
+        return output(**{k: v for k, v in fields.items() if k in known})
 
     OUTPUT_TRANSL = False
 

@@ -28,13 +28,6 @@ class ModelOutput:
     transl: Tensor | None = None
     v_shaped: Tensor | None = None
 
-    def __getattribute__(self, name: str) -> Any:
-        value = object.__getattribute__(self, name)
-        if type(value) is Deferred:
-            value = value.compute()
-            object.__setattr__(self, name, value)
-        return value
-
     def __getitem__(self, key: str) -> Any:
         return getattr(self, key)
 
@@ -85,3 +78,25 @@ class FLAMEOutput(ModelOutput):
     expression: Tensor | None = None
     jaw_pose: Tensor | None = None
     neck_pose: Tensor | None = None
+
+
+class _Lazy:
+    """Mixed into an output class: a :class:`Deferred` field is computed on first read."""
+
+    def __getattribute__(self, name: str) -> Any:
+        value = object.__getattribute__(self, name)
+        if type(value) is Deferred:
+            value = value.compute()
+            object.__setattr__(self, name, value)
+        return value
+
+
+_LAZY: dict[type, type] = {}
+
+
+def lazy(cls: type) -> type:
+    """``cls`` with :class:`Deferred` fields computed on first read (a subclass; eager mode only, since
+    ``torch.compile`` cannot trace a custom ``__getattribute__``)."""
+    if cls not in _LAZY:
+        _LAZY[cls] = type(cls.__name__, (_Lazy, cls), {"__module__": cls.__module__, "__qualname__": cls.__qualname__})
+    return _LAZY[cls]

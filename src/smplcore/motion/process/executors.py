@@ -118,7 +118,7 @@ def _mp_context(options: ProcessOptions) -> Any:
     if "forkserver" not in multiprocessing.get_all_start_methods():
         return multiprocessing.get_context("spawn")
     context = multiprocessing.get_context("forkserver")
-    preload = ["numpy", "smplcore.motion.process", "smplcore.motion.models", "smplcore.model_setup"]
+    preload = ["numpy", "smplcore.motion.process", "smplcore.motion.models", "smplcore.frontend"]
     from smplcore.motion.models import resolve_backend
 
     if resolve_backend(options.backend, options.vertices) == "torch":
