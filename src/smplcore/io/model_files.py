@@ -291,8 +291,9 @@ def _from_official(path: Path, raw: dict[str, Any], model_type: str | None, gend
     hands: dict[str, np.ndarray | None] = {}
     if model_type in ("smplh", "smplx"):
         for side, suffix in (("left", "l"), ("right", "r")):
-            comps = c.get(f"hands_components{suffix}", required=False)
-            mean = c.get(f"hands_mean{suffix}", required=False)
+            # Empty arrays (some AMASS SMPL+H downloads) mean "no hand PCA", as in smplx.
+            comps = _absent_if_empty(c.get(f"hands_components{suffix}", required=False))
+            mean = _absent_if_empty(c.get(f"hands_mean{suffix}", required=False))
             hands[f"hands_components_{side}"] = (
                 None if comps is None else c.expect(f"hands_components{suffix}", comps, (None, 45))
             )
@@ -329,6 +330,10 @@ def _from_official(path: Path, raw: dict[str, Any], model_type: str | None, gend
         **hands,
         **landmarks,
     )
+
+
+def _absent_if_empty(value: np.ndarray | None) -> np.ndarray | None:
+    return None if value is None or value.size == 0 else value
 
 
 def _official_landmarks(path: Path, c: _Checker, model_type: str, num_faces: int) -> dict[str, np.ndarray]:
