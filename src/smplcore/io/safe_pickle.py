@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import io
 import pickle
-import re
 from typing import Any, BinaryIO
 
 import numpy as np
@@ -37,147 +36,24 @@ import numpy as np
 from smplcore.errors import ModelFileError
 from smplcore.io.budgets import (
     ALLOWED_CODECS,
-    MAX_ARRAY_ELEMENTS,
     MAX_GLOBAL_NAME,
     MAX_NESTING,
     LoadBudget,
-    element_count,
 )
-from smplcore.io.sparse_values import sparse_value
+from smplcore.io.pickle_recipes import (
+    ArrayRecipe,
+    ChumpyObject,
+    DtypeRecipe,
+    NdarrayName,
+    Recorded,
+    SparseMatrix,
+    UnsafePickleError,
+    as_bytes,
+    build_array,
+    materialize,
+)
 
-
-class UnsafePickleError(pickle.UnpicklingError):
-    """The pickle names a global outside the allow-list, or asks to call or set state on something
-    it may not."""
-
-
-class _Recorded:
-    """Stand-in for an allow-listed foreign class: records the state it is given, runs nothing."""
-
-    module = ""
-    name = ""
-
-    def __init__(self, *args: Any) -> None:
-        self.args = args
-        self.state: Any = None
-
-    def __setstate__(self, state: Any) -> None:
-        self.state = state
-
-
-class ChumpyObject(_Recorded):
-    """A chumpy object; its value is the array under ``x`` in its state."""
-
-
-class SparseMatrix(_Recorded):
-    """A scipy.sparse matrix; rebuilt from ``data``/``indices``/``indptr`` (or ``row``/``col``)."""
-
-
-class _NdarrayName:
-    """What ``numpy.ndarray`` resolves to: only a marker passed to ``_reconstruct``."""
-
-
-_DTYPE_STRINGS = re.compile(r"(b1|[iu][1248]|f[248]|c(8|16)|[SU][0-9]{1,9}|O[48])\Z")
-_BYTE_ORDERS = ("<", ">", "|", "=")
-
-
-class DtypeRecipe:
-    """A dtype named by a pickle: a whitelisted type string plus byte order / string length."""
-
-    def __init__(self, type_str: str) -> None:
-        if not isinstance(type_str, str) or not _DTYPE_STRINGS.match(type_str):
-            raise UnsafePickleError(f"dtype {str(type_str)[:40]!r} is not a plain numeric, bool or string type")
-        self.type_str = type_str
-        self.byteorder = "="
-        self.elsize = -1
-
-    def __setstate__(self, state: Any) -> None:
-        """Read the byte order and string length from numpy's state tuple; refuse anything else."""
-        if not isinstance(state, tuple) or len(state) not in (8, 9) or state[0] not in (3, 4):
-            raise UnsafePickleError("a dtype's pickled state is not numpy's plain (version 3) layout")
-        _, byteorder, subdescr, names, fields, elsize, _alignment, _flags = state[:8]
-        if len(state) == 9 and state[8] is not None:
-            raise UnsafePickleError("dtype metadata is not allowed")
-        if subdescr is not None or names is not None or fields is not None:
-            raise UnsafePickleError("structured and sub-array dtypes are not allowed")
-        if byteorder not in _BYTE_ORDERS or type(elsize) is not int:
-            raise UnsafePickleError(f"invalid dtype state (byte order {byteorder!r}, size {elsize!r})")
-        self.byteorder, self.elsize = byteorder, elsize
-
-    @property
-    def is_object(self) -> bool:
-        return self.type_str[0] == "O"
-
-    def resolve(self) -> np.dtype:
-        """The real dtype (never an object, void or structured one: see :attr:`is_object`)."""
-        kind = self.type_str[0]
-        if kind == "O":
-            raise UnsafePickleError("an object dtype cannot be used here")
-        if kind in "SU" and self.elsize != -1:
-            per_char = 4 if kind == "U" else 1
-            if self.elsize <= 0 or self.elsize % per_char or self.elsize > (1 << 20):
-                raise UnsafePickleError(f"invalid string dtype size {self.elsize}")
-            dtype = np.dtype(f"{kind}{self.elsize // per_char}")
-        else:
-            dtype = np.dtype(self.type_str)
-            if self.elsize not in (-1, dtype.itemsize):
-                raise UnsafePickleError(f"dtype {self.type_str} with item size {self.elsize}")
-        if self.byteorder in "<>" and dtype.itemsize > 1 and kind != "S":
-            dtype = dtype.newbyteorder(self.byteorder)
-        if dtype.itemsize == 0:
-            raise UnsafePickleError(f"zero-size dtype {dtype}")
-        return dtype
-
-
-class _ArrayRecipe:
-    """``_reconstruct``'s result: becomes an array when ``BUILD`` gives it shape, dtype and data."""
-
-    def __init__(self, budget: LoadBudget) -> None:
-        self.budget = budget
-        self.value: Any = None
-
-    def __setstate__(self, state: Any) -> None:
-        if not isinstance(state, tuple) or len(state) not in (4, 5):
-            raise UnsafePickleError("an ndarray's pickled state is not (version, shape, dtype, fortran, data)")
-        shape, dtype, fortran, data = state[-4:]
-        if fortran not in (0, 1):
-            raise UnsafePickleError("an ndarray's fortran flag must be True or False")
-        self.value = _build_array(self.budget, dtype, shape, data, "F" if fortran else "C")
-
-
-class _ObjectArray:
-    """An object array: Python values from the pickle, made into an ndarray by :func:`materialize`."""
-
-    def __init__(self, shape: tuple[int, ...], items: list, order: str) -> None:
-        self.shape, self.items, self.order = shape, items, order
-
-
-def _as_bytes(data: Any, what: str) -> bytes:
-    if isinstance(data, str):
-        return data.encode("latin1")  # Python 2 str read with encoding="latin1"
-    if isinstance(data, (bytes, bytearray, memoryview)):
-        return bytes(data)
-    raise UnsafePickleError(f"{what}: expected bytes, found {type(data).__name__}")
-
-
-def _build_array(budget: LoadBudget, dtype: Any, shape: Any, data: Any, order: str) -> Any:
-    """An array from a validated dtype, shape and exactly ``prod(shape) * itemsize`` bytes."""
-    if not isinstance(dtype, DtypeRecipe):
-        raise UnsafePickleError(f"an array's dtype must come from numpy.dtype, found {type(dtype).__name__}")
-    shape = budget.check_shape(tuple(shape) if isinstance(shape, (tuple, list)) else shape, "pickled array")
-    count = element_count(shape)
-    if dtype.is_object:
-        if not isinstance(data, list) or len(data) != count:
-            raise UnsafePickleError(f"an object array of shape {shape} needs a list of {count} values")
-        budget.charge(8 * count, "pickled object array")
-        return _ObjectArray(shape, data, order)
-    real = dtype.resolve()
-    nbytes = count * real.itemsize
-    budget.charge(nbytes * (2 if isinstance(data, str) else 1), "pickled array")
-    raw = _as_bytes(data, "array data")
-    if len(raw) != nbytes:
-        raise pickle.UnpicklingError(f"array of shape {shape} and dtype {real} needs {nbytes} bytes, found {len(raw)}")
-    return np.frombuffer(raw, dtype=real, count=count).reshape(shape, order=order)
+__all__ = ["ChumpyObject", "SparseMatrix", "UnsafePickleError", "materialize", "safe_load"]
 
 
 class _BoundedReader:
@@ -241,7 +117,7 @@ class _SafeUnpickler(pickle._Unpickler):
         if len(module) > MAX_GLOBAL_NAME or len(name) > MAX_GLOBAL_NAME:
             raise UnsafePickleError("the pickle names a global with an over-long name")
         if module == "numpy" and name == "ndarray":
-            return _NdarrayName
+            return NdarrayName
         if (module, name) == ("numpy", "dtype"):
             return self._functions["dtype"]
         if module in ("numpy.core.multiarray", "numpy._core.multiarray") and name in ("_reconstruct", "scalar"):
@@ -271,17 +147,17 @@ class _SafeUnpickler(pickle._Unpickler):
     def _dtype(self, type_str: Any, align: Any = False, copy: Any = True) -> DtypeRecipe:
         return DtypeRecipe(type_str)
 
-    def _reconstruct(self, cls: Any, shape: Any = (0,), typecode: Any = b"b") -> _ArrayRecipe:
-        if cls is not _NdarrayName:
+    def _reconstruct(self, cls: Any, shape: Any = (0,), typecode: Any = b"b") -> ArrayRecipe:
+        if cls is not NdarrayName:
             raise UnsafePickleError(f"_reconstruct of {getattr(cls, '__name__', type(cls).__name__)} is not allowed")
-        return _ArrayRecipe(self.budget)
+        return ArrayRecipe(self.budget)
 
     def _scalar(self, dtype: Any, data: Any = None) -> Any:
         if not isinstance(dtype, DtypeRecipe) or dtype.is_object:
             raise UnsafePickleError("numpy scalars must have a plain numeric, bool or string dtype")
         real = dtype.resolve()
         self.budget.charge(real.itemsize, "a numpy scalar")
-        raw = _as_bytes(data, "scalar data")
+        raw = as_bytes(data, "scalar data")
         if len(raw) != real.itemsize:
             raise pickle.UnpicklingError(f"a {real} scalar needs {real.itemsize} bytes, found {len(raw)}")
         return np.frombuffer(raw, dtype=real, count=1)[0]
@@ -293,11 +169,11 @@ class _SafeUnpickler(pickle._Unpickler):
             raise UnsafePickleError("object arrays cannot be built from a buffer")
         if isinstance(buf, str):
             raise UnsafePickleError("_frombuffer needs bytes")
-        return _build_array(self.budget, dtype, shape, buf, order)
+        return build_array(self.budget, dtype, shape, buf, order)
 
     def _reconstructor(self, cls: Any, base: Any = object, state: Any = None) -> Any:
         """Python 2's ``copy_reg._reconstructor``, limited to our stand-ins on ``object``."""
-        if isinstance(cls, type) and issubclass(cls, _Recorded) and base is object and state is None:
+        if isinstance(cls, type) and issubclass(cls, Recorded) and base is object and state is None:
             return cls()
         raise UnsafePickleError(f"copy_reg._reconstructor of {getattr(cls, '__name__', type(cls).__name__)}")
 
@@ -350,7 +226,7 @@ class _SafeUnpickler(pickle._Unpickler):
             raise pickle.UnpicklingError("REDUCE needs a tuple of arguments")
         if id(func) in self._callable_ids:
             result = func(*args)
-        elif isinstance(func, type) and issubclass(func, _Recorded):
+        elif isinstance(func, type) and issubclass(func, Recorded):
             self.budget.charge(256, "a stand-in object")
             result = func(*args)
         else:
@@ -358,7 +234,7 @@ class _SafeUnpickler(pickle._Unpickler):
         return self._nested(result) if type(result) in (tuple, frozenset) else result
 
     def _instantiate(self, cls: Any) -> Any:
-        if isinstance(cls, type) and issubclass(cls, _Recorded):
+        if isinstance(cls, type) and issubclass(cls, Recorded):
             self.budget.charge(256, "a stand-in object")
             return cls()
         raise UnsafePickleError(f"creating a {getattr(cls, '__name__', type(cls).__name__)} is not allowed")
@@ -411,7 +287,7 @@ class _SafeUnpickler(pickle._Unpickler):
     def load_build(self) -> None:
         state = self.stack.pop()
         inst = self.stack[-1]
-        if not isinstance(inst, (_Recorded, DtypeRecipe, _ArrayRecipe)):
+        if not isinstance(inst, (Recorded, DtypeRecipe, ArrayRecipe)):
             raise UnsafePickleError(f"setting the state of a {type(inst).__name__} is not allowed")
         inst.__setstate__(state)
 
@@ -535,75 +411,3 @@ def safe_load(file: BinaryIO | bytes, budget: LoadBudget | None = None, *, limit
         raise pickle.UnpicklingError(str(exc)) from None
     except Exception as exc:  # noqa: BLE001 - EOF, struct, Type/Value/Overflow/Recursion/MemoryError, ...
         raise pickle.UnpicklingError(f"{type(exc).__name__}: {exc}") from None
-
-
-def materialize(obj: Any, budget: LoadBudget | None = None) -> Any:
-    """Replace recipes and stand-ins inside ``obj`` (dicts, lists, tuples, sets) by arrays and
-    sparse matrices. Values reached twice are built once and shared; nesting is limited."""
-    return _Materializer(budget or LoadBudget("<pickle>", 0)).run(obj, 0)
-
-
-class _Materializer:
-    def __init__(self, budget: LoadBudget) -> None:
-        self.budget = budget
-        self.done: dict[int, Any] = {}
-        self.keep: list[Any] = []  # keeps inputs alive so their ids stay unique
-
-    def run(self, obj: Any, depth: int) -> Any:
-        kind = type(obj)
-        if kind in (int, float, str, bytes, bool, complex, type(None), np.ndarray):
-            return obj
-        if depth > MAX_NESTING:
-            raise pickle.UnpicklingError(f"values nested more than {MAX_NESTING} deep")
-        if id(obj) in self.done:
-            return self.done[id(obj)]
-        self.keep.append(obj)
-        if kind is list:
-            out: Any = []
-            self.done[id(obj)] = out
-            out.extend(self.run(v, depth + 1) for v in obj)
-        elif kind is dict:
-            out = {}
-            self.done[id(obj)] = out
-            for key, value in obj.items():
-                out[key] = self.run(value, depth + 1)
-        elif kind in (tuple, set, frozenset):
-            out = kind(self.run(v, depth + 1) for v in obj)
-        elif isinstance(obj, _ArrayRecipe):
-            if obj.value is None:
-                raise pickle.UnpicklingError("an ndarray without its data (no BUILD)")
-            out = self.run(obj.value, depth + 1)
-        elif isinstance(obj, _ObjectArray):
-            out = np.empty(len(obj.items), dtype=object)
-            for i, item in enumerate(obj.items):
-                out[i] = self.run(item, depth + 1)
-            out = out.reshape(obj.shape, order=obj.order)
-        elif isinstance(obj, DtypeRecipe):
-            out = np.dtype(object) if obj.is_object else obj.resolve()
-        elif isinstance(obj, ChumpyObject):
-            out = self._chumpy_value(obj, depth)
-        elif isinstance(obj, SparseMatrix):
-            state = obj.state if isinstance(obj.state, dict) else {}
-            state = {k: self.run(v, depth + 1) for k, v in state.items() if isinstance(k, str)}
-            out = sparse_value(obj.name, state, self.budget)
-        else:
-            out = obj
-        self.done[id(obj)] = out
-        return out
-
-    def _chumpy_value(self, obj: ChumpyObject, depth: int) -> np.ndarray:
-        state = obj.state if isinstance(obj.state, dict) else {}
-        if "x" not in state:
-            raise pickle.UnpicklingError(
-                f"chumpy object {obj.module}.{obj.name} has no stored value 'x' "
-                "(only plain chumpy arrays can be read without chumpy)"
-            )
-        value = self.run(state["x"], depth + 1)
-        if not isinstance(value, np.ndarray):
-            if not isinstance(value, (list, tuple, int, float)):
-                raise pickle.UnpicklingError(f"chumpy value 'x' is a {type(value).__name__}, not an array")
-            self.budget.charge(8 * min(MAX_ARRAY_ELEMENTS, len(value) if isinstance(value, list) else 1), "chumpy x")
-            value = np.asarray(value)
-        if value.dtype == object:
-            raise pickle.UnpicklingError("chumpy value 'x' holds Python objects")
-        return value
