@@ -34,6 +34,9 @@ The numbers
     (Mostly-zero arrays such as a dense joint regressor legitimately reach ~120:1.) Members are read
     lazily, only when used, streamed, and stop at their declared size; their declared size is
     charged to the budget first.
+``MAX_LIST_NODES = 10**6``
+    Python lists turned into arrays (never the form of large official arrays) may have at most
+    this many nodes, counting shared sub-lists each time.
 ``MAX_GLOBAL_NAME = 200``
     Characters in a pickled module or class name (real ones are < 40).
 
@@ -120,4 +123,22 @@ def element_count(shape: tuple[int, ...]) -> int:
     count = 1
     for n in shape:
         count *= n
+    return count
+
+
+MAX_LIST_NODES = 10**6
+
+
+def nested_list_size(value: object, limit: int = MAX_LIST_NODES) -> int:
+    """Nodes of a nested list/tuple (shared sub-lists counted each time they are reached), or
+    ``limit + 1`` as soon as there are more: a guard before ``np.asarray`` on a Python list, whose
+    sub-lists a pickle can share to make it exponentially large."""
+    count, todo = 0, [value]
+    while todo:
+        item = todo.pop()
+        count += 1
+        if count > limit:
+            return count
+        if type(item) in (list, tuple):
+            todo.extend(item)
     return count

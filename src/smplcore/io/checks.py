@@ -9,6 +9,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from smplcore.errors import ModelFileError
+from smplcore.io.budgets import MAX_LIST_NODES, nested_list_size
 
 _FLOAT32_MAX = float(np.finfo(np.float32).max)
 T = TypeVar("T")
@@ -27,6 +28,9 @@ class Checker:
 
     def run(self, convert: Callable[..., T], *args: Any) -> T:
         try:
+            odd = [k for k in self.raw if not isinstance(k, str)]
+            if odd:
+                raise self.error(f"expected text keys, found a {type(odd[0]).__name__} key ({len(odd)} in all)")
             return convert(self, *args)
         except ModelFileError:
             raise
@@ -46,6 +50,8 @@ class Checker:
         value = self.raw[key]
         if hasattr(value, "toarray"):  # scipy.sparse
             value = value.toarray()
+        if type(value) in (list, tuple) and nested_list_size(value) > MAX_LIST_NODES:
+            raise self.error(f"a nested list with more than {MAX_LIST_NODES:,} entries, expected an array", key)
         try:
             value = np.asarray(value)
         except Exception as exc:  # noqa: BLE001 - report anything unusable as a file error

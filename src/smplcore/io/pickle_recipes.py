@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from smplcore.io.budgets import MAX_ARRAY_ELEMENTS, MAX_NESTING, LoadBudget, element_count
+from smplcore.io.budgets import MAX_LIST_NODES, MAX_NESTING, LoadBudget, element_count, nested_list_size
 from smplcore.io.sparse_values import sparse_value
 
 
@@ -52,6 +52,9 @@ class NdarrayName:
 
 _DTYPE_STRINGS = re.compile(r"(b1|[iu][1248]|f[248]|c(8|16)|[SU][0-9]{1,9}|O[48])\Z")
 _BYTE_ORDERS = ("<", ">", "|", "=")
+# The flags numpy writes for each kind: none for plain types, NPY_NEEDS_INIT for unicode, the
+# object bits for "O". Any other value would ask for item semantics we never build.
+_DTYPE_FLAGS = {"U": (0, 8), "O": (63,)}
 
 
 class DtypeRecipe:
@@ -73,8 +76,11 @@ class DtypeRecipe:
             raise UnsafePickleError("dtype metadata is not allowed")
         if subdescr is not None or names is not None or fields is not None:
             raise UnsafePickleError("structured and sub-array dtypes are not allowed")
-        if byteorder not in _BYTE_ORDERS or type(elsize) is not int:
+        if byteorder not in _BYTE_ORDERS or type(elsize) is not int or type(_flags) is not int:
             raise UnsafePickleError(f"invalid dtype state (byte order {byteorder!r}, size {elsize!r})")
+        allowed = _DTYPE_FLAGS.get(self.type_str[0], (0,))
+        if _flags not in allowed:
+            raise UnsafePickleError(f"dtype {self.type_str} with flags {_flags} (numpy writes {allowed[-1]})")
         self.byteorder, self.elsize = byteorder, elsize
 
     @property
@@ -218,7 +224,12 @@ class _Materializer:
         if not isinstance(value, np.ndarray):
             if not isinstance(value, (list, tuple, int, float)):
                 raise pickle.UnpicklingError(f"chumpy value 'x' is a {type(value).__name__}, not an array")
-            self.budget.charge(8 * min(MAX_ARRAY_ELEMENTS, len(value) if isinstance(value, list) else 1), "chumpy x")
+            size = nested_list_size(value)
+            if size > MAX_LIST_NODES:
+                raise pickle.UnpicklingError(
+                    f"chumpy value 'x' is a nested list of more than {MAX_LIST_NODES:,} entries"
+                )
+            self.budget.charge(8 * size, "chumpy x")
             value = np.asarray(value)
         if value.dtype == object:
             raise pickle.UnpicklingError("chumpy value 'x' holds Python objects")
