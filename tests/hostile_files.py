@@ -43,6 +43,12 @@ def integer(n: int) -> bytes:
     return b"J" + struct.pack("<i", n)
 
 
+def long_(n: int) -> bytes:
+    """LONG1 (any Python int)."""
+    data = n.to_bytes((n.bit_length() + 8) // 8, "little", signed=True)
+    return b"\x8a" + bytes([len(data)]) + data
+
+
 def tup(*items: bytes) -> bytes:
     """MARK items TUPLE."""
     return b"(" + b"".join(items) + b"t"
@@ -107,10 +113,10 @@ def deep_tuple_key(depth: int) -> bytes:
 
 def shared_list_bomb(levels: int) -> bytes:
     """``L[i+1] = [L[i], L[i]]``: 2**levels leaves if every shared list were copied."""
-    out = PROTO2 + b"]q\x00"
-    for i in range(levels):
-        out += b"(h" + bytes([i]) + b"h" + bytes([i]) + b"lq" + bytes([i + 1])
-    return PROTO2 + b"}" + text("v_template") + out[2:] + b"s."
+    out = b"]q\x00"
+    for i in range(levels):  # POP the previous list, build the next from two references to it
+        out += b"0(h" + bytes([i]) + b"h" + bytes([i]) + b"lq" + bytes([i + 1])
+    return PROTO2 + b"}" + text("v_template") + out + b"s."
 
 
 def list_copy_bomb(size: int, copies: int) -> bytes:
@@ -144,15 +150,17 @@ def npy_of(array: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-def zeros_deflated(nbytes: int) -> bytes:
-    """A raw deflate stream inflating to ``nbytes`` zero bytes, built fast by repeating one
-    fully-flushed (self-contained) block."""
+def zeros_deflated(nbytes: int, prefix: bytes = b"") -> bytes:
+    """A raw deflate stream inflating to ``prefix`` then ``nbytes`` zero bytes, built fast by
+    repeating one fully-flushed (self-contained) block."""
     chunk = 1 << 22
+    head = zlib.compressobj(9, zlib.DEFLATED, -15)
+    start = head.compress(prefix) + head.flush(zlib.Z_FULL_FLUSH) if prefix else b""
     c = zlib.compressobj(9, zlib.DEFLATED, -15)
     block = c.compress(bytes(chunk)) + c.flush(zlib.Z_FULL_FLUSH)
     tail = zlib.compressobj(9, zlib.DEFLATED, -15)
     rest = tail.compress(bytes(nbytes % chunk)) + tail.flush()
-    return block * (nbytes // chunk) + rest
+    return start + block * (nbytes // chunk) + rest
 
 
 def write_zip(path: Path, members: list[dict]) -> Path:
