@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import io
 import pickle
+import struct
 from typing import Any, BinaryIO
 
 import numpy as np
@@ -326,6 +327,15 @@ class _SafeUnpickler(pickle._Unpickler):
             raise pickle.UnpicklingError(f"cannot add items to a {type(target).__name__}")
         return target
 
+    def load_bytearray8(self) -> None:
+        """As pickle's, but the declared length is charged before ``bytearray(length)`` is allocated."""
+        (length,) = struct.unpack("<Q", self.read(8))
+        self.budget.charge(length, "a BYTEARRAY8 of the declared length")
+        data = self.read(length)
+        if len(data) != length:
+            raise pickle.UnpicklingError(f"BYTEARRAY8 declares {length} bytes, found {len(data)}")
+        self.append(bytearray(data))
+
     def load_tuple(self) -> None:
         value = self._nested(tuple(self.pop_mark()))  # pop_mark replaces self.append: call it first
         self.append(value)
@@ -367,6 +377,7 @@ class _SafeUnpickler(pickle._Unpickler):
         (pickle.TUPLE2, load_tuple2),
         (pickle.TUPLE3, load_tuple3),
         (pickle.FROZENSET, load_frozenset),
+        (pickle.BYTEARRAY8, load_bytearray8),
     ):
         dispatch[_op[0]] = _method
     del _op, _method
