@@ -111,12 +111,17 @@ def deep_tuple_key(depth: int) -> bytes:
     return PROTO2 + b"}" + b")" + b"\x85" * depth + b"K\x01s."
 
 
-def shared_list_bomb(levels: int) -> bytes:
-    """``L[i+1] = [L[i], L[i]]``: 2**levels leaves if every shared list were copied."""
+def shared_list_ops(levels: int) -> bytes:
+    """Opcodes of ``L[i+1] = [L[i], L[i]]`` (memo slots 0..levels): 2**levels leaves if copied."""
     out = b"]q\x00"
     for i in range(levels):  # POP the previous list, build the next from two references to it
         out += b"0(h" + bytes([i]) + b"h" + bytes([i]) + b"lq" + bytes([i + 1])
-    return PROTO2 + b"}" + text("v_template") + out + b"s."
+    return out
+
+
+def shared_list_bomb(levels: int) -> bytes:
+    """A dict whose ``v_template`` is :func:`shared_list_ops`."""
+    return PROTO2 + b"}" + text("v_template") + shared_list_ops(levels) + b"s."
 
 
 def list_copy_bomb(size: int, copies: int) -> bytes:

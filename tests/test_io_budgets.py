@@ -34,6 +34,10 @@ PICKLE_BOMBS = {
         H.list_copy_bomb(20000, 20000),
         r"builtins\.list would need .* at most 6\d,\d{3},\d{3} bytes in all",
     ),
+    "shared_list_as_a_codec_name": (
+        H.one_value(H.glob("_codecs", "encode") + b"(" + H.text("x") + H.shared_list_ops(60) + b"tR"),
+        r"codec a list is not allowed",
+    ),
     "punycode": (
         H.one_value(H.reduce(H.glob("_codecs", "encode"), H.text("\u00e9" * 58000), H.text("punycode"))),
         r"codec 'punycode' is not allowed",

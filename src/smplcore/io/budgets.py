@@ -48,6 +48,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from smplcore.errors import ModelFileError
 
 MIB = 1 << 20
@@ -97,8 +99,12 @@ class LoadBudget:
 
     def check_shape(self, shape: object, what: str) -> tuple[int, ...]:
         """``shape`` as a tuple of ints after checking rank and element count; refuse otherwise."""
-        if not isinstance(shape, (tuple, list)) or not all(type(n) is int for n in shape):
+        integer = (int, np.integer)
+        if not isinstance(shape, (tuple, list)) or not all(
+            isinstance(n, integer) and type(n) is not bool for n in shape
+        ):
             raise self.refuse(f"{what}: expected a shape of integers, found {_short(shape)}")
+        shape = tuple(int(n) for n in shape)
         if len(shape) > MAX_NDIM:
             raise self.refuse(f"{what}: expected at most {MAX_NDIM} dimensions, found {len(shape)}")
         if any(n < 0 for n in shape):

@@ -24,6 +24,12 @@ class UnsafePickleError(pickle.UnpicklingError):
     it may not."""
 
 
+def brief(value: Any) -> str:
+    """A short description of a file-controlled value for messages: text is cut, anything else is
+    named by type (``str()`` of a list shared through the memo could take exponential time)."""
+    return repr(value[:40]) if isinstance(value, str) else f"a {type(value).__name__}"
+
+
 class Recorded:
     """Stand-in for an allow-listed foreign class: records the state it is given, runs nothing."""
 
@@ -62,7 +68,7 @@ class DtypeRecipe:
 
     def __init__(self, type_str: str) -> None:
         if not isinstance(type_str, str) or not _DTYPE_STRINGS.match(type_str):
-            raise UnsafePickleError(f"dtype {str(type_str)[:40]!r} is not a plain numeric, bool or string type")
+            raise UnsafePickleError(f"dtype {brief(type_str)} is not a plain numeric, bool or string type")
         self.type_str = type_str
         self.byteorder = "="
         self.elsize = -1

@@ -50,6 +50,7 @@ from smplcore.io.pickle_recipes import (
     SparseMatrix,
     UnsafePickleError,
     as_bytes,
+    brief,
     build_array,
     materialize,
 )
@@ -87,9 +88,9 @@ _SHORT_TEXT = 64
 
 def _check_codec(encoding: Any, errors: Any = "strict") -> str:
     if not isinstance(encoding, str) or encoding.lower() not in ALLOWED_CODECS:
-        raise UnsafePickleError(f"codec {str(encoding)[:40]!r} is not allowed (only latin1, ascii, utf-8)")
+        raise UnsafePickleError(f"codec {brief(encoding)} is not allowed (only latin1, ascii, utf-8)")
     if errors != "strict":
-        raise UnsafePickleError(f"codec error handler {str(errors)[:40]!r} is not allowed")
+        raise UnsafePickleError(f"codec error handler {brief(errors)} is not allowed")
     return encoding
 
 
@@ -165,7 +166,7 @@ class _SafeUnpickler(pickle._Unpickler):
 
     def _frombuffer(self, buf: Any, dtype: Any, shape: Any, order: Any = "C") -> Any:
         if order not in ("C", "F"):
-            raise UnsafePickleError(f"array order {str(order)[:10]!r} is not allowed")
+            raise UnsafePickleError(f"array order {brief(order)} is not allowed")
         if isinstance(dtype, DtypeRecipe) and dtype.is_object:
             raise UnsafePickleError("object arrays cannot be built from a buffer")
         if isinstance(buf, str):
