@@ -90,6 +90,7 @@ def _seeds() -> list[tuple[str, bytes]]:
     import scipy.sparse as sp
 
     import hostile_files as H
+    from smplcore.io import ModelData, save_npz
 
     rng = np.random.default_rng(0)
     plain = {
@@ -109,6 +110,22 @@ def _seeds() -> list[tuple[str, bytes]]:
         for method in (0, 8):
             path = H.write_zip(Path(tmp) / "x.npz", [dict(m, method=method) for m in members])
             seeds.append(("npz", path.read_bytes()))
+        own = ModelData(
+            model_type="open",
+            gender="neutral",
+            v_template=arrays["v_template"],
+            faces=arrays["f"].astype(np.int64),
+            shapedirs=arrays["shapedirs"],
+            posedirs=None,
+            J_regressor=arrays["J_regressor"],
+            weights=arrays["weights"],
+            parents=np.array([-1, 0, 1]),
+            joint_names=("root", "a", "b"),
+        )
+        seeds.append(("npz", save_npz(own, Path(tmp) / "own.npz").read_bytes()))
+    embedded = np.empty((), dtype=object)
+    embedded[()] = dict(plain, J_regressor=arrays["J_regressor"])
+    seeds.append(("npy", H.npy_of(embedded)))  # a .npy holding a pickled dict (as FLAME's embeddings)
     return seeds
 
 
