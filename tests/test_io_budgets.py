@@ -240,3 +240,24 @@ def test_npz_members_are_read_only_when_used(fake_models, tmp_path):
     with pytest.warns(UserWarning, match="not_needed"):
         data = load_model(path)
     assert data.model_type == "mano" and data.v_template.shape == (778, 3)
+
+
+def test_read_array_file_reads_plain_arrays_and_refuses_the_rest(tmp_path):
+    from smplcore.errors import ModelFileError
+    from smplcore.io.containers import read_array_file
+
+    good = tmp_path / "kid.npy"
+    np.save(good, np.arange(6.0).reshape(2, 3))
+    assert read_array_file(good).tolist() == [[0.0, 1.0, 2.0], [3.0, 4.0, 5.0]]
+    huge = tmp_path / "huge.npy"
+    huge.write_bytes(_npy_header((10**12,)))
+    with pytest.raises(ModelFileError, match=r"huge\.npy: \.npy header: shape \(1000000000000,\) declares"):
+        read_array_file(huge)
+    pickled = tmp_path / "dict.npy"
+    np.save(pickled, np.array({"a": 1}, dtype=object), allow_pickle=True)
+    with pytest.raises(ModelFileError, match=r"expected a numeric array, found dtype object"):
+        read_array_file(pickled)
+    fifo = tmp_path / "fifo.npy"
+    os.mkfifo(fifo)
+    with pytest.raises(ModelFileError, match=r"not a regular file \(a FIFO\)"):
+        read_array_file(fifo)

@@ -112,6 +112,33 @@ def read_container(path: str | Path) -> Mapping[str, Any]:
     )
 
 
+def read_array_file(path: str | Path) -> np.ndarray:
+    """One numeric array from a ``.npy`` file (e.g. a kid template), with the loader's checks:
+    regular file, budget, plain dtype, no pickles.
+
+    Raises
+    ------
+    ModelFileError
+        naming the file, for any failure.
+    """
+    path = Path(path)
+    fh, size = open_regular(path)
+    with fh:
+        try:
+            if fh.read(6) != _NPY_MAGIC:
+                raise ModelFileError(path, "not a .npy file")
+            fh.seek(0)
+            value = read_npy(fh, LoadBudget(path, size), size)
+        except ModelFileError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - every damage is a file error
+            raise _corrupt(path, exc) from None
+    if not isinstance(value, np.ndarray) or value.dtype.kind not in "biuf":
+        found = f"dtype {value.dtype}" if isinstance(value, np.ndarray) else type(value).__name__
+        raise ModelFileError(path, f"expected a numeric array, found {found}")
+    return value
+
+
 def read_npy(fh: BinaryIO, budget: LoadBudget, limit: int) -> np.ndarray | Any:
     """Read one .npy array of at most ``limit`` bytes; object arrays are unpickled through the
     allow-list. The declared shape is checked against the budget before anything is allocated."""
