@@ -218,7 +218,7 @@ def _official(c: Checker, model_type: str | None, gender: str | None) -> ModelDa
     path, raw = c.path, c.raw
     unknown = sorted(set(raw) - _OFFICIAL_KEYS - _KNOWN_UNUSED)
     if unknown:
-        warnings.warn(f"{path}: ignoring keys smplcore does not know: {unknown}", stacklevel=3)
+        warnings.warn(f"{path}: ignoring keys smplcore does not know: {unknown}", stacklevel=5)
 
     v_template = c.get("v_template")
     c.expect("v_template", v_template, (None, 3))
