@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 import warnings
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -11,6 +12,7 @@ import numpy as np
 
 from smplcore.errors import ModelFileError
 from smplcore.family.specs import MODEL_TYPE_BY_NUM_JOINTS, get_spec
+from smplcore.io.checks import Checker, check_index, check_parents
 from smplcore.io.containers import read_container
 from smplcore.io.model_data import MODEL_TYPES, ModelData
 
@@ -185,39 +187,6 @@ def convert(src: str | Path, dst: str | Path, *, model_type: str | None = None, 
 # --------------------------------------------------------------------------------------------------
 
 
-class _Checker:
-    """Pulls keys out of a raw dict with shape checks that name the file and key."""
-
-    def __init__(self, path: Path, raw: dict[str, Any]):
-        self.path, self.raw = path, raw
-
-    def get(self, key: str, *, required: bool = True) -> np.ndarray | None:
-        if key not in self.raw:
-            if required:
-                raise ModelFileError(self.path, f"missing key; the file has {sorted(self.raw)}", key=key)
-            return None
-        value = self.raw[key]
-        if hasattr(value, "toarray"):  # scipy.sparse
-            value = value.toarray()
-        try:
-            value = np.asarray(value)
-        except Exception as exc:  # noqa: BLE001 - report anything unusable as a file error
-            raise ModelFileError(self.path, f"not an array ({exc})", key=key) from None
-        if value.dtype == object:
-            raise ModelFileError(self.path, "holds Python objects, expected a numeric array", key=key)
-        return value
-
-    def expect(self, key: str, value: np.ndarray, shape: tuple, what: str = "") -> np.ndarray:
-        """Check ``value.shape`` against ``shape`` (None entries match anything)."""
-        ok = value.ndim == len(shape) and all(e is None or e == s for e, s in zip(shape, value.shape))
-        if not ok:
-            expected = "(" + ", ".join("*" if e is None else str(e) for e in shape) + ")"
-            raise ModelFileError(self.path, f"expected shape {expected}{what}, found {value.shape}", key=key)
-        if value.dtype.kind in "fc" and not np.all(np.isfinite(value)):
-            raise ModelFileError(self.path, "contains NaN or infinite values", key=key)
-        return value
-
-
 def _infer_model_type(path: Path, num_joints: int, requested: str | None) -> str:
     from_contents = MODEL_TYPE_BY_NUM_JOINTS.get(num_joints)
     if requested is not None:
@@ -240,23 +209,23 @@ def _infer_model_type(path: Path, num_joints: int, requested: str | None) -> str
     return from_contents
 
 
-def _parents_from_kintree(kintree: np.ndarray) -> np.ndarray:
-    parents = kintree[0].astype(np.int64)
-    parents[0] = -1
-    return parents
+def _from_official(path: Path, raw: Mapping[str, Any], model_type: str | None, gender: str | None) -> ModelData:
+    """ModelData from the keys of an official file (or an smplx ``data_struct``)."""
+    return Checker(path, raw).run(_official, model_type, gender)
 
 
-def _from_official(path: Path, raw: dict[str, Any], model_type: str | None, gender: str | None) -> ModelData:
-    c = _Checker(path, raw)
+def _official(c: Checker, model_type: str | None, gender: str | None) -> ModelData:
+    path, raw = c.path, c.raw
     unknown = sorted(set(raw) - _OFFICIAL_KEYS - _KNOWN_UNUSED)
     if unknown:
-        warnings.warn(f"{path}: ignoring keys smplcore does not know: {unknown}", stacklevel=3)
+        warnings.warn(f"{path}: ignoring keys smplcore does not know: {unknown}", stacklevel=5)
 
     v_template = c.get("v_template")
     c.expect("v_template", v_template, (None, 3))
     num_verts = v_template.shape[0]
     kintree = c.get("kintree_table")
     c.expect("kintree_table", kintree, (2, None))
+    parents = check_parents(path, "kintree_table", kintree[0], root_stored=False)
     num_joints = kintree.shape[1]
     model_type = _infer_model_type(path, num_joints, model_type or model_type_from_name(path))
     spec = get_spec(model_type)
@@ -270,7 +239,8 @@ def _from_official(path: Path, raw: dict[str, Any], model_type: str | None, gend
     jshape = f" [J={num_joints} from kintree_table]"
 
     faces = c.expect("f", c.get("f"), (None, 3))
-    _check_faces(path, faces, num_verts)
+    faces_dtype = str(faces.dtype) if faces.dtype.kind in "iu" else "int64"
+    faces = check_index(path, "f", faces, num_verts)
     shapedirs = c.get("shapedirs")
     if shapedirs.ndim == 2:
         shapedirs = shapedirs[:, :, None]
@@ -291,8 +261,9 @@ def _from_official(path: Path, raw: dict[str, Any], model_type: str | None, gend
     hands: dict[str, np.ndarray | None] = {}
     if model_type in ("smplh", "smplx"):
         for side, suffix in (("left", "l"), ("right", "r")):
-            comps = c.get(f"hands_components{suffix}", required=False)
-            mean = c.get(f"hands_mean{suffix}", required=False)
+            # Empty arrays (some AMASS SMPL+H downloads) mean "no hand PCA", as in smplx.
+            comps = _absent_if_empty(c.get(f"hands_components{suffix}", required=False))
+            mean = _absent_if_empty(c.get(f"hands_mean{suffix}", required=False))
             hands[f"hands_components_{side}"] = (
                 None if comps is None else c.expect(f"hands_components{suffix}", comps, (None, 45))
             )
@@ -317,13 +288,13 @@ def _from_official(path: Path, raw: dict[str, Any], model_type: str | None, gend
         model_type=model_type,
         gender=gender,
         v_template=v_template,
-        faces=faces.astype(np.int64),
-        faces_dtype=str(faces.dtype),
+        faces=faces,
+        faces_dtype=faces_dtype,
         shapedirs=shapedirs,
         posedirs=posedirs,
         J_regressor=J_regressor,
         weights=weights,
-        parents=_parents_from_kintree(kintree),
+        parents=parents,
         exprdirs=exprdirs,
         joint_names=spec.joint_names,
         source=str(path),
@@ -332,7 +303,11 @@ def _from_official(path: Path, raw: dict[str, Any], model_type: str | None, gend
     )
 
 
-def _official_landmarks(path: Path, c: _Checker, model_type: str, num_faces: int) -> dict[str, np.ndarray]:
+def _absent_if_empty(value: np.ndarray | None) -> np.ndarray | None:
+    return None if value is None or value.size == 0 else value
+
+
+def _official_landmarks(path: Path, c: Checker, model_type: str, num_faces: int) -> dict[str, np.ndarray]:
     """Static and dynamic landmarks: inside SMPL-X files, in embedding files next to FLAME files."""
     out: dict[str, np.ndarray] = {}
     if model_type == "smplx":
@@ -342,68 +317,58 @@ def _official_landmarks(path: Path, c: _Checker, model_type: str, num_faces: int
         static = path.parent / "flame_static_embedding.pkl"
         dynamic = path.parent / "flame_dynamic_embedding.npy"
         if static.exists():
-            sources.append((_Checker(static, read_container(static)), "lmk_face_idx", "lmk_b_coords", None, None))
+            sources.append((Checker(static, read_container(static)), "lmk_face_idx", "lmk_b_coords", None, None))
         if dynamic.exists():
-            sources.append((_Checker(dynamic, read_container(dynamic)), None, None, "lmk_face_idx", "lmk_b_coords"))
+            sources.append((Checker(dynamic, read_container(dynamic)), None, None, "lmk_face_idx", "lmk_b_coords"))
     else:
         return out
     for checker, s_idx, s_bary, d_idx, d_bary in sources:
         if s_idx:
             idx = checker.expect(s_idx, checker.get(s_idx).reshape(-1), (None,))
             bary = checker.expect(s_bary, checker.get(s_bary), (idx.shape[0], 3))
-            _check_index(checker.path, s_idx, idx, num_faces)
-            out["lmk_faces_idx"], out["lmk_bary_coords"] = idx.astype(np.int64), bary
+            out["lmk_faces_idx"], out["lmk_bary_coords"] = check_index(checker.path, s_idx, idx, num_faces), bary
         if d_idx:
             idx = checker.get(d_idx, required=model_type == "flame")
             if idx is None:
                 continue
             idx = checker.expect(d_idx, idx, (79, None))
             bary = checker.expect(d_bary, checker.get(d_bary), (79, idx.shape[1], 3))
-            _check_index(checker.path, d_idx, idx, num_faces)
-            out["dynamic_lmk_faces_idx"], out["dynamic_lmk_bary_coords"] = idx.astype(np.int64), bary
+            idx = check_index(checker.path, d_idx, idx, num_faces)
+            out["dynamic_lmk_faces_idx"], out["dynamic_lmk_bary_coords"] = idx, bary
     return out
 
 
-def _check_faces(path: Path, faces: np.ndarray, num_verts: int) -> None:
-    if faces.dtype.kind not in "iu":
-        raise ModelFileError(path, f"expected integer vertex indices, found dtype {faces.dtype}", key="f")
-    _check_index(path, "f", faces, num_verts)
+def _from_smplcore_npz(path: Path, raw: Mapping[str, Any], model_type: str | None) -> ModelData:
+    return Checker(path, raw).run(_smplcore_npz, model_type)
 
 
-def _check_index(path: Path, key: str, index: np.ndarray, size: int) -> None:
-    if index.size and (index.min() < 0 or index.max() >= size):
-        raise ModelFileError(path, f"indices must lie in [0, {size}), found [{index.min()}, {index.max()}]", key=key)
-
-
-def _from_smplcore_npz(path: Path, raw: dict[str, Any], model_type: str | None) -> ModelData:
-    c = _Checker(path, raw)
-    tag = str(raw["format"])
+def _smplcore_npz(c: Checker, model_type: str | None) -> ModelData:
+    path, raw = c.path, c.raw
+    tag = c.text("format")
     if tag != FORMAT_TAG:
-        raise ModelFileError(
-            path, f"unsupported smplcore format {tag!r} (this version reads {FORMAT_TAG!r})", key="format"
-        )
+        raise c.error(f"unsupported smplcore format {tag!r} (this version reads {FORMAT_TAG!r})", "format")
     missing = sorted(_OURS_REQUIRED - set(raw))
     if missing:
-        raise ModelFileError(path, f"missing key(s) {missing}", key=missing[0])
+        raise c.error(f"missing key(s) {missing}", missing[0])
     extra = sorted(set(raw) - _OURS_REQUIRED - _OURS_OPTIONAL)
     if extra:
-        raise ModelFileError(path, f"unknown key(s) {extra} in a smplcore model file", key=extra[0])
-    stored_type = str(raw["model_type"])
+        raise c.error(f"unknown key(s) {extra} in a smplcore model file", extra[0])
+    stored_type = c.text("model_type")
     if stored_type not in MODEL_TYPES:
-        raise ModelFileError(path, f"unknown model type {stored_type!r}", key="model_type")
+        raise c.error(f"expected one of {list(MODEL_TYPES)}, found {stored_type[:40]!r}", "model_type")
     if model_type is not None and get_spec(model_type).model_type != stored_type:
-        raise ModelFileError(
-            path, f"holds a {stored_type!r} model, but model_type={model_type!r} was asked", key="model_type"
-        )
-    v = c.expect("v_template", c.get("v_template"), (None, 3))
-    parents = c.expect("parents", c.get("parents"), (None,)).astype(np.int64)
+        raise c.error(f"holds a {stored_type!r} model, but model_type={model_type!r} was asked", "model_type")
+    gender = c.text("gender")
+    spec = get_spec(stored_type)
+    v = c.expect("v_template", c.get("v_template"), (spec.num_vertices, 3), f" for a {spec.display_name} model")
+    parents = c.expect("parents", c.get("parents"), (None if stored_type == "open" else spec.num_joints,))
+    parents = check_parents(path, "parents", parents)
     nv, nj = v.shape[0], parents.shape[0]
     vj = f" [V={nv}, J={nj}]"
-    faces = c.expect("faces", c.get("faces"), (None, 3))
-    _check_faces(path, faces, nv)
+    faces = check_index(path, "faces", c.expect("faces", c.get("faces"), (None, 3)), nv)
     arrays: dict[str, Any] = dict(
         v_template=v,
-        faces=faces.astype(np.int64),
+        faces=faces,
         parents=parents,
         shapedirs=c.expect("shapedirs", c.get("shapedirs"), (nv, 3, None), vj),
         J_regressor=c.expect("J_regressor", c.get("J_regressor"), (nj, nv), vj),
@@ -423,25 +388,29 @@ def _from_smplcore_npz(path: Path, raw: dict[str, Any], model_type: str | None) 
     }
     for key, shape in optional_shapes.items():
         value = c.get(key, required=False)
+        if key.startswith("hands_"):
+            value = _absent_if_empty(value)
         arrays[key] = None if value is None else c.expect(key, value, shape, vj)
     for key in ("lmk_faces_idx", "dynamic_lmk_faces_idx"):
         if arrays[key] is not None:
-            _check_index(path, key, arrays[key], faces.shape[0])
-            arrays[key] = arrays[key].astype(np.int64)
-    names = {key: tuple(str(s) for s in raw[key]) for key in ("joint_names", "extra_joint_names") if key in raw}
-    extra_ids = tuple(int(i) for i in raw.get("extra_joint_vertex_ids", ()))
-    if len(extra_ids) != len(names.get("extra_joint_names", ())):
-        raise ModelFileError(
-            path, "extra_joint_names and extra_joint_vertex_ids differ in length", key="extra_joint_vertex_ids"
+            arrays[key] = check_index(path, key, arrays[key], faces.shape[0])
+    joint_names = c.names("joint_names", nj) if "joint_names" in raw else None
+    extra_names = c.names("extra_joint_names") if "extra_joint_names" in raw else ()
+    extra_ids: tuple[int, ...] = ()
+    if "extra_joint_vertex_ids" in raw:
+        ids = c.expect("extra_joint_vertex_ids", c.get("extra_joint_vertex_ids"), (len(extra_names),))
+        extra_ids = tuple(int(i) for i in check_index(path, "extra_joint_vertex_ids", ids, nv))
+    if len(extra_ids) != len(extra_names):
+        raise c.error(
+            f"expected {len(extra_names)} vertex ids (one per extra joint name), found {len(extra_ids)}",
+            "extra_joint_vertex_ids",
         )
-    if extra_ids:
-        _check_index(path, "extra_joint_vertex_ids", np.asarray(extra_ids), nv)
     return ModelData(
         model_type=stored_type,
-        gender=str(raw["gender"]),
+        gender=gender,
         source=str(path),
-        joint_names=names.get("joint_names"),
-        extra_joint_names=names.get("extra_joint_names", ()),
+        joint_names=joint_names,
+        extra_joint_names=extra_names,
         extra_joint_vertex_ids=extra_ids,
         **arrays,
     )
