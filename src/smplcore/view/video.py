@@ -14,6 +14,7 @@ is handed to it as eight extra vertices that no face uses: they move the framing
 
 from __future__ import annotations
 
+import gc
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -103,6 +104,7 @@ def render_video(
     keypoints: Any = None,
     batch: int = 32,
     progress: Callable[[int], Any] | None = None,
+    on_start: Callable[[int], Any] | None = None,
 ) -> VideoReport:
     """Render a motion to ``output`` (``.mp4``: H.264; ``.gif``).
 
@@ -121,6 +123,7 @@ def render_video(
         then half transparent), e.g. the keypoints a fit was made to.
     batch : frames posed per model call; memory is O(batch), not O(T).
     progress : called with the number of frames written, e.g. ``tqdm(total=T).update``.
+    on_start : called once with the number of frames the video will have, before rendering starts.
 
     Raises
     ------
@@ -171,6 +174,8 @@ def render_video(
         if targets.ndim != 3 or targets.shape[-1] != 3:
             raise ValueError(f"keypoints: expected shape (K, 3) or (T, K, 3), got {targets.shape}")
 
+    if on_start is not None:
+        on_start(count)
     boxes = _camera_boxes(body, frame_of, batch, targets, camera, out_fps)
     out.parent.mkdir(parents=True, exist_ok=True)
     options: dict[str, Any] = {"macro_block_size": 2, "ffmpeg_log_level": "error"}
@@ -179,6 +184,10 @@ def render_video(
     else:
         options.update(codec="libx264", pix_fmt_out="yuv420p", quality=7)
     start_time = time.perf_counter()
+    # pyrender runs a full gc.collect() for every renderer it deletes (one per frame); frozen objects are not
+    # scanned, so the per-frame cost no longer grows with everything the process has loaded.
+    was_frozen = gc.get_freeze_count() > 0
+    gc.freeze()
     writer = ffmpeg.write_frames(str(out), (width, height), fps=out_fps, **options)
     writer.send(None)
     faces = body.faces
@@ -204,6 +213,8 @@ def render_video(
                 progress(len(frames))
     finally:
         writer.close()
+        if not was_frozen:
+            gc.unfreeze()
     return VideoReport(
         path=out, frames=count, fps=out_fps, width=width, height=height, seconds=time.perf_counter() - start_time
     )
