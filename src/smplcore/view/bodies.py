@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from smplcore.errors import ModelFileError
 from smplcore.view.sources import Source
 
 MODEL_TYPES = ("open", "smpl", "smplh", "smplx", "mano", "flame")
@@ -43,7 +44,16 @@ def build_model(
     with warnings.catch_warnings():
         # BodyModel warns about options a model type does not take; those are left out above where known.
         warnings.simplefilter("ignore")
-        return BodyModel(model_path, model_type=model_type, gender=gender, **options)
+        try:
+            return BodyModel(model_path, model_type=model_type, gender=gender, **options)
+        except ModelFileError:
+            if model_path is None or not Path(model_path).is_dir():
+                raise
+            try:  # a folder holding .npz files only: the gendered file under the other extension
+                return BodyModel(model_path, model_type=model_type, gender=gender, ext="npz", **options)
+            except ModelFileError:
+                pass
+            raise
 
 
 def _fit(name: str, value: np.ndarray, width: int) -> np.ndarray:

@@ -415,11 +415,12 @@ def show(
     elif isinstance(model, BodyModel):
         models = [model] * len(sources)
     elif model is not None and hasattr(model, "setup"):  # a torch model of smplcore.create
-        numpy_model = BodyModel(
-            data=model.setup.data,
-            num_betas=model.num_betas,
-            **({"num_expression_coeffs": model.num_expression_coeffs} if model.num_expression_coeffs else {}),
-        )
+        extra: dict[str, Any] = {}
+        if model.num_expression_coeffs:
+            extra["num_expression_coeffs"] = model.num_expression_coeffs
+        if model.setup.spec.model_type in ("smplh", "smplx", "mano"):
+            extra["use_pca"] = False  # every hand joint gets its own rotation control
+        numpy_model = BodyModel(data=model.setup.data, num_betas=model.num_betas, **extra)
         models = [numpy_model] * len(sources)
     elif model is not None:
         raise ValueError(f"model: expected a smplcore.BodyModel, a smplcore.create model or a path, got {model!r}")
