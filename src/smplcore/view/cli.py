@@ -55,6 +55,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     _model_options(view)
     view.add_argument("--keypoints", type=Path, default=None, help="target keypoints (.npy/.npz) over the first body")
     view.add_argument("--out-dir", type=Path, default=Path("."), help="where the save buttons write (default: .)")
+    view.add_argument(
+        "--lighting",
+        choices=("studio", "simple"),
+        default="studio",
+        help="studio: environment map and shadows (default); simple: faster where WebGL runs in software",
+    )
     view.set_defaults(run=run_view)
 
     render = subparsers.add_parser(
@@ -96,6 +102,7 @@ def run_view(args: argparse.Namespace) -> int:
             host=args.host,
             keypoints=args.keypoints,
             out_dir=args.out_dir,
+            lighting=args.lighting,
         )
     except MissingDependencyError as exc:
         return _missing("view", exc)

@@ -26,6 +26,7 @@ from smplcore.view.sources import Source, load_keypoints
 # Body colours (RGB 0-255): the first body, then the ones beside it.
 PALETTE = ((222, 160, 128), (128, 170, 222), (150, 205, 140), (215, 150, 205), (230, 205, 120))
 _GAP = 0.25  # metres between neighbouring bodies
+LIGHTING = ("studio", "simple")
 
 
 class Viewer:
@@ -41,6 +42,8 @@ class Viewer:
     keypoints : a (K, 3) / (T, K, 3) array or file of target keypoints, drawn over the first body.
     out_dir : where the save buttons write.
     models : ready :class:`smplcore.BodyModel`\\ s per source (used instead of building one).
+    lighting : ``"studio"`` (viser's environment map and shadows) or ``"simple"`` (lights without shadows
+        or environment map: much faster where the browser renders WebGL in software, e.g. headless).
     """
 
     def __init__(
@@ -55,6 +58,7 @@ class Viewer:
         keypoints: Any = None,
         out_dir: str | Path = ".",
         models: list[Any] | None = None,
+        lighting: str = "studio",
         verbose: bool = False,
     ) -> None:
         from smplcore.view.sources import load_source
@@ -70,6 +74,12 @@ class Viewer:
         with _quiet_stdout(not verbose):  # viser prints a banner; a library does not print
             self.server = viser.ViserServer(host=host, port=8080 if port is None else int(port), verbose=verbose)
         self.server.scene.set_up_direction("+y")
+        if lighting not in LIGHTING:
+            raise ValueError(f"lighting: expected one of {', '.join(LIGHTING)}, got {lighting!r}")
+        if lighting == "simple":
+            self.server.scene.configure_environment_map(None)
+            self.server.scene.configure_default_lights(True, cast_shadow=False)
+            self.server.scene.add_light_hemisphere("/lights/sky", sky_color=(255, 255, 255), ground_color=(90, 80, 70))
         self.bodies: list[Body] = []
         for i, src in enumerate(srcs):
             model = models[i] if models and i < len(models) else self._model_for(src)
@@ -201,7 +211,7 @@ class Viewer:
         size = float(max(hi[1] - lo[1], hi[0] - lo[0], 0.2))
         cam = self.server.initial_camera
         cam.look_at = tuple(centre)
-        cam.position = (float(centre[0]), float(centre[1] + 0.15 * size), float(hi[2] + 1.6 * size))
+        cam.position = (float(centre[0]), float(centre[1] + 0.15 * size), float(hi[2] + 1.1 * size))
         cam.up = (0.0, 1.0, 0.0)
         self.server.scene.add_grid(
             "/floor",
