@@ -50,7 +50,7 @@ def browser():
 def screenshot(page) -> np.ndarray:
     from PIL import Image
 
-    return np.asarray(Image.open(io.BytesIO(page.screenshot())).convert("RGB")).astype(int)
+    return np.asarray(Image.open(io.BytesIO(page.screenshot(timeout=120_000))).convert("RGB")).astype(int)
 
 
 def centre(img: np.ndarray) -> np.ndarray:

@@ -160,7 +160,13 @@ class Viewer:
         root = f"/bodies/{index}"
         verts, joints = body.evaluate()
         nodes: dict[str, Any] = {"frame": scene.add_frame(root, show_axes=False, position=(self._offsets[index], 0, 0))}
-        nodes["mesh"] = scene.add_mesh_simple(f"{root}/mesh", verts, body.faces, color=self._color(index))
+        nodes["mesh"] = scene.add_mesh_simple(
+            f"{root}/mesh",
+            verts,
+            body.faces,
+            color=self._color(index),
+            opacity=0.45 if self.show_skeleton else None,
+        )
         parents = body.model.parents
         nodes["bones"] = np.array([(j, p) for j, p in enumerate(parents) if p >= 0], dtype=np.int64).reshape(-1, 2)
         nodes["skeleton"] = scene.add_line_segments(
@@ -252,6 +258,7 @@ class Viewer:
             if names is not None:
                 self.show_names = bool(names)
             for nodes in self._nodes:
+                nodes["mesh"].opacity = 0.45 if self.show_skeleton else None  # the bones inside show through
                 nodes["skeleton"].visible = self.show_skeleton
                 nodes["joints"].visible = self.show_skeleton
                 for label in nodes["names"]:
