@@ -204,7 +204,6 @@ def render_video(
                     extra = {
                         "joints": targets[min(int(frames[i]), len(targets) - 1)],
                         "joint_color": _KEYPOINT_COLOR,
-                        "joint_radius": 0.02,
                         "alpha": 0.6,
                     }
                 image = render_mesh(padded, faces, width=width, height=height, camera=view, color=_BODY_COLOR, **extra)
