@@ -291,3 +291,14 @@ def test_missing_extra_is_one_line_and_exit_2(monkeypatch, capsys, tmp_path):
         warnings.simplefilter("error")
         assert main(["view", str(tmp_path / "nope.npz")]) == 2
     assert "nope.npz: no such file" in capsys.readouterr().err
+
+
+def test_target_keypoints_follow_the_timeline(tmp_path):
+    from smplcore.view import Viewer
+
+    targets = np.random.default_rng(0).normal(size=(12, 5, 3))
+    np.save(tmp_path / "target.npy", targets)
+    with Viewer([save_motion(walk(), tmp_path / "walk.npz")], keypoints=tmp_path / "target.npy", port=free_port()) as v:
+        np.testing.assert_allclose(v._nodes[0]["keypoints"].points, targets[0], atol=1e-6)
+        v.controls.frame.value = 9
+        np.testing.assert_allclose(v._nodes[0]["keypoints"].points, targets[9], atol=1e-6)

@@ -97,7 +97,7 @@ def run_view(args: argparse.Namespace) -> int:
             list(args.inputs),
             model_path=args.model_path,
             model_type=args.model_type,
-            gender=args.gender or "neutral",
+            gender=args.gender,
             port=args.port,
             host=args.host,
             keypoints=args.keypoints,

@@ -101,10 +101,8 @@ class Controls:
         return callback
 
     def _gender_of(self, index: int) -> str:
-        src = self.viewer.bodies[index].source
-        if src.motion is not None and src.motion.gender in GENDERS:
-            return src.motion.gender
-        return self.viewer.gender if self.viewer.gender in GENDERS else "neutral"
+        gender = self.viewer.genders[index]
+        return gender if gender in GENDERS else "neutral"
 
     def _model_options(self) -> list[str]:
         body = self._body

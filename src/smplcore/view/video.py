@@ -188,10 +188,11 @@ def render_video(
     # scanned, so the per-frame cost no longer grows with everything the process has loaded.
     was_frozen = gc.get_freeze_count() > 0
     gc.freeze()
-    writer = ffmpeg.write_frames(str(out), (width, height), fps=out_fps, **options)
-    writer.send(None)
+    writer = None
     faces = body.faces
     try:
+        writer = ffmpeg.write_frames(str(out), (width, height), fps=out_fps, **options)
+        writer.send(None)
         for start in range(0, count, batch):
             frames = frame_of[start : start + batch]
             verts, _ = body.evaluate_frames(int(frames[0]), int(frames[-1]) + 1)
@@ -211,7 +212,8 @@ def render_video(
             if progress is not None:
                 progress(len(frames))
     finally:
-        writer.close()
+        if writer is not None:
+            writer.close()
         if not was_frozen:
             gc.unfreeze()
     return VideoReport(

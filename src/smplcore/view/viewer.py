@@ -37,7 +37,7 @@ class Viewer:
     sources : what to show, one body each (:class:`~smplcore.view.sources.Source`, or paths read with
         :func:`~smplcore.view.sources.load_source`); default one open-model body at rest.
     model_path, model_type, gender : the body model for sources that are not model files (default: the
-        open model). With a folder the model switch offers every type and gender found in it.
+        open model; gender: the motion's, else neutral). With a folder the model switch offers every type.
     port : HTTP port (default 8080; the next free one when taken). ``host`` is 127.0.0.1 unless given.
     keypoints : a (K, 3) / (T, K, 3) array or file of target keypoints, drawn over the first body.
     out_dir : where the save buttons write.
@@ -52,7 +52,7 @@ class Viewer:
         *,
         model_path: str | Path | None = None,
         model_type: str | None = None,
-        gender: str = "neutral",
+        gender: str | None = None,
         port: int | None = None,
         host: str = "127.0.0.1",
         keypoints: Any = None,
@@ -70,21 +70,24 @@ class Viewer:
         self.out_dir = Path(out_dir)
         self.timings: collections.deque[float] = collections.deque(maxlen=2000)
         self._lock = threading.RLock()
-        srcs = [s if isinstance(s, Source) else load_source(s) for s in (sources or [Source(label="open model")])]
+        srcs = [s if isinstance(s, Source) else load_source(s) for s in (sources or [Source(label="body")])]
+        if lighting not in LIGHTING:
+            raise ValueError(f"lighting: expected one of {', '.join(LIGHTING)}, got {lighting!r}")
+        self.bodies: list[Body] = []
+        self.genders: list[str] = []
+        for i, src in enumerate(srcs):
+            model = models[i] if models and i < len(models) else self._model_for(src)
+            self.bodies.append(Body(model, src))
+            self.genders.append(self._gender_for(src))
+        self.keypoints = None if keypoints is None else _keypoints(keypoints)
+        # The server starts once every input has loaded: a bad file leaves no server behind.
         with _quiet_stdout(not verbose):  # viser prints a banner; a library does not print
             self.server = viser.ViserServer(host=host, port=8080 if port is None else int(port), verbose=verbose)
         self.server.scene.set_up_direction("+y")
-        if lighting not in LIGHTING:
-            raise ValueError(f"lighting: expected one of {', '.join(LIGHTING)}, got {lighting!r}")
         if lighting == "simple":
             self.server.scene.configure_environment_map(None)
             self.server.scene.configure_default_lights(True, cast_shadow=False)
             self.server.scene.add_light_hemisphere("/lights/sky", sky_color=(255, 255, 255), ground_color=(90, 80, 70))
-        self.bodies: list[Body] = []
-        for i, src in enumerate(srcs):
-            model = models[i] if models and i < len(models) else self._model_for(src)
-            self.bodies.append(Body(model, src))
-        self.keypoints = None if keypoints is None else _keypoints(keypoints)
         self.show_skeleton = False
         self.show_names = False
         self._nodes: list[dict[str, Any]] = [{} for _ in self.bodies]
@@ -109,10 +112,17 @@ class Viewer:
             betas = max(10, int(np.asarray(src.motion.betas).size))
         elif src.params is not None and "betas" in src.params:
             betas = max(10, int(np.asarray(src.params["betas"]).shape[-1]))
-        g = gender or (src.motion.gender if src.motion is not None and src.motion.gender in GENDERS else self.gender)
         if mtype == "open":
             path = None
-        return build_model(path, mtype, g, num_betas=betas, flat_hand_mean=motion_like)
+        return build_model(path, mtype, self._gender_for(src, gender), num_betas=betas, flat_hand_mean=motion_like)
+
+    def _gender_for(self, src: Source, gender: str | None = None) -> str:
+        """The gender asked for, else the viewer's, else the motion's, else neutral."""
+        if gender or self.gender:
+            return str(gender or self.gender)
+        if src.motion is not None and src.motion.gender in GENDERS:
+            return str(src.motion.gender)
+        return "neutral"
 
     def switch_model(self, index: int, model_type: str, gender: str) -> None:
         """Give body ``index`` another model (type and gender), keeping its shape and pose where the joints
@@ -132,6 +142,7 @@ class Viewer:
             else:
                 new.set_frame(old.frame)
             self.bodies[index] = new
+            self.genders[index] = gender
             self._remove_body_nodes(index)
             self._add_body_nodes(index)
 
