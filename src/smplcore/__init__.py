@@ -50,7 +50,22 @@ __all__ = [
 ]
 
 
-_LAZY_SUBMODULES = {"body_models", "lbs", "utils", "vertex_ids", "joint_names", "torch", "motion", "export", "render"}
+_LAZY_SUBMODULES = {
+    "view",
+    "keypoints",
+    "frontend",
+    "fit",
+    "smplx_compat",
+    "body_models",
+    "lbs",
+    "utils",
+    "vertex_ids",
+    "joint_names",
+    "torch",
+    "motion",
+    "export",
+    "render",
+}
 
 
 def __getattr__(name: str) -> Any:
@@ -67,6 +82,6 @@ def __getattr__(name: str) -> Any:
 
 def install_as_smplx() -> None:
     """Register smplcore under the name ``smplx`` (submodules included), for unmodified smplx code."""
-    from smplcore.compat import install_as_smplx as _install
+    from smplcore.smplx_compat import install_as_smplx as _install
 
     _install()

@@ -1,23 +1,7 @@
-"""smplx's ``body_models`` module: the model classes, ``create``, ``build_layer`` and output classes."""
+"""smplx's ``body_models`` module: this name is :mod:`smplcore.smplx_compat.body_models` itself."""
 
-from smplcore.torch.factory import build_layer, create  # noqa: F401
-from smplcore.torch.models import (  # noqa: F401
-    FLAME,
-    MANO,
-    SMPL,
-    SMPLH,
-    SMPLX,
-    FLAMELayer,
-    MANOLayer,
-    SMPLHLayer,
-    SMPLLayer,
-    SMPLXLayer,
-)
-from smplcore.torch.outputs import (  # noqa: F401
-    FLAMEOutput,
-    MANOOutput,
-    ModelOutput,
-    SMPLHOutput,
-    SMPLOutput,
-    SMPLXOutput,
-)
+import sys
+
+from smplcore.smplx_compat import body_models as _module
+
+sys.modules[__name__] = _module

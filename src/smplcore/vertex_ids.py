@@ -1,5 +1,7 @@
-"""smplx's ``vertex_ids`` module: the vertices used as extra joints, per mesh."""
+"""smplx's ``vertex_ids`` module: this name is :mod:`smplcore.smplx_compat.vertex_ids` itself."""
 
-from smplcore.family.names import VERTEX_IDS_MANO, VERTEX_IDS_SMPLH, VERTEX_IDS_SMPLX
+import sys
 
-vertex_ids = {"smplh": dict(VERTEX_IDS_SMPLH), "smplx": dict(VERTEX_IDS_SMPLX), "mano": dict(VERTEX_IDS_MANO)}
+from smplcore.smplx_compat import vertex_ids as _module
+
+sys.modules[__name__] = _module

@@ -277,11 +277,10 @@ def _with_kid_component(data: ModelData, shapedirs: np.ndarray, kid_template_pat
     """Append the kid template's offset from the adult template as one more shape component."""
     if not kid_template_path:
         raise ValueError("kid_template_path: age='kid' needs the path of the kid template (.npy)")
+    from smplcore.io.containers import read_array_file
+
     path = Path(kid_template_path)
-    try:
-        kid = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as exc:
-        raise ModelFileError(path, f"cannot read the kid template ({exc})") from None
+    kid = read_array_file(path)
     if kid.shape != data.v_template.shape:
         raise ModelFileError(path, f"expected shape {data.v_template.shape}, found {kid.shape}")
     kid = kid - kid.mean(axis=0)

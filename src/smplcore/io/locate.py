@@ -38,8 +38,8 @@ def locate_model_file(
             "model_path: a model file or folder is needed (or model_type='open' for the packaged open model)"
         )
     path = Path(model_path).expanduser()
-    if path.is_file():
-        return path
+    if path.exists() and not path.is_dir():
+        return path  # a file (or a FIFO, device, ...: the loader refuses those clearly)
     if not path.exists():
         raise ModelFileError(path, "no such file or folder")
     if model_type is None:

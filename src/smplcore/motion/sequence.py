@@ -174,35 +174,14 @@ _MOTION_KEYS = (
 
 
 def _read_motion_arrays(path: Path) -> dict[str, Any]:
-    """The motion keys of an ``.npz`` (only those are read and checked), else the whole container."""
-    import io
-    import zipfile
+    """The motion keys of an ``.npz`` (only those are inflated, within the loader's budgets), else the
+    whole container; every failure is a ModelFileError naming the file."""
+    from smplcore.io.containers import LazyNpz, read_container
 
-    from smplcore.io.containers import _read_npy, read_container
-    from smplcore.io.safe_pickle import UnsafePickleError
-
-    try:
-        with open(path, "rb") as fh:
-            is_zip = fh.read(4) == b"PK\x03\x04"
-    except OSError as exc:
-        raise ModelFileError(path, f"cannot read ({exc.strerror or exc})") from None
-    if not is_zip:
-        return read_container(path)
-    out: dict[str, Any] = {}
-    try:
-        with zipfile.ZipFile(path) as archive:
-            for name in archive.namelist():
-                key = name[:-4] if name.endswith(".npy") else name
-                if key in _MOTION_KEYS:
-                    with archive.open(name) as member:
-                        out[key] = _read_npy(io.BytesIO(member.read()))
-    except ModelFileError:
-        raise
-    except UnsafePickleError as exc:
-        raise ModelFileError(path, f"refused to load: {exc}; nothing in the file was run") from None
-    except Exception as exc:  # zipfile, zlib, EOF, header errors: all mean a damaged file
-        raise ModelFileError(path, f"truncated or corrupt file ({type(exc).__name__}: {exc})") from None
-    return out
+    container = read_container(path)
+    if isinstance(container, LazyNpz):
+        return {key: container[key] for key in container if key in _MOTION_KEYS}
+    return dict(container)
 
 
 FPS_KEYS = ("mocap_framerate", "mocap_frame_rate", "fps", "frame_rate")  # SMPL+H, SMPL-X, others

@@ -1,4 +1,5 @@
-"""``install_as_smplx()``: let unmodified smplx code run on smplcore."""
+"""smplx 0.1.28's module paths (``body_models``, ``lbs``, ``utils``, ``vertex_ids``, ``joint_names``) over smplcore,
+and ``install_as_smplx()``, which lets unmodified smplx code run on smplcore."""
 
 from __future__ import annotations
 
@@ -19,4 +20,4 @@ def install_as_smplx() -> None:
     package = importlib.import_module("smplcore")
     sys.modules["smplx"] = package
     for name in _SUBMODULES:
-        sys.modules[f"smplx.{name}"] = importlib.import_module(f"smplcore.{name}")
+        sys.modules[f"smplx.{name}"] = importlib.import_module(f"smplcore.smplx_compat.{name}")
