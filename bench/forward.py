@@ -211,6 +211,7 @@ def _time_calls(fn: Callable[[], Any], n: int) -> float:
     t0 = time.perf_counter()
     for _ in range(n):
         out = fn()
+    peers.sync()
     dt = time.perf_counter() - t0
     del out
     return dt / n
@@ -570,6 +571,18 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         help="seconds for the timing part; past 60%% (85%%) of it the remaining groups get fewer rounds "
         "(default 660; quick 75)",
     )
+    ap.add_argument(
+        "--device",
+        default="cpu",
+        help="where the torch contenders run: cpu (default) or cuda "
+        "(skips cleanly where there is no GPU; NumPy contenders and GEMM gauges stay on the CPU)",
+    )
+    ap.add_argument(
+        "--compile",
+        action="store_true",
+        help="add smplcore-torch-compiled and smplx-compiled "
+        "(torch.compile, Inductor); compilation happens in the warm-up calls",
+    )
     ap.add_argument("--threads", type=int, default=None, help="torch.set_num_threads(N) (default: torch's own)")
     ap.add_argument("--no-memory", action="store_true", help="skip the peak-memory subprocesses")
     ap.add_argument("--memory-batch", type=int, default=512)
@@ -609,6 +622,18 @@ def main(argv: list[str] | None = None) -> int:
         return 0
 
     warnings.filterwarnings("ignore")
+    if args.device != "cpu":
+        import torch
+
+        if not args.device.startswith("cuda") or not torch.cuda.is_available():
+            print(
+                f"--device {args.device}: no such device on this machine (CUDA available: "
+                f"{torch.cuda.is_available()}); nothing measured"
+            )
+            return 0
+        peers.DEVICE = args.device
+    if args.compile:
+        peers.CONTENDERS.update(peers.COMPILED)
 
     t_start = time.perf_counter()
     if args.threads:
@@ -630,6 +655,10 @@ def main(argv: list[str] | None = None) -> int:
     ref_batch = args.joints_ref_batch or 64
     modes = [m for m in args.modes.split(",") if m]
     names = [c for c in (args.contenders or ",".join(QUICK_CONTENDERS if quick else peers.CONTENDERS)).split(",") if c]
+    if args.compile and not args.contenders:
+        names += [c for c in peers.COMPILED if c not in names]
+    if peers.DEVICE != "cpu":  # NumPy contenders have no device
+        names = [c for c in names if peers.CONTENDERS[c].kind == "torch"]
     for c in names:
         if c not in peers.CONTENDERS:
             raise SystemExit(f"unknown contender {c!r}; known: {list(peers.CONTENDERS)}")

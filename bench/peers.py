@@ -94,6 +94,16 @@ def _torch():
     return torch
 
 
+#: Where the torch contenders run (``bench/forward.py --device``).
+DEVICE = "cpu"
+
+
+def sync() -> None:
+    """Wait for the device's queued work (timings on a GPU)."""
+    if DEVICE != "cpu":
+        _torch().cuda.synchronize()
+
+
 class Contender:
     name = ""
     kind = "torch"  # or "numpy"
@@ -109,7 +119,7 @@ class Contender:
         torch = _torch()
         out = {}
         for k, v in arrays.items():
-            t = torch.from_numpy(np.ascontiguousarray(v))
+            t = torch.from_numpy(np.ascontiguousarray(v)).to(DEVICE)
             if grad and k not in ("expression",):
                 t.requires_grad_(True)
             out[k] = t
@@ -175,6 +185,7 @@ class SmplcoreTorch(Contender):
                 **opts,
             )
         self.model.requires_grad_(False)
+        self.model.to(DEVICE)
 
     def prepare(self, params, grad=False):
         return self._tensors(params, grad)
@@ -238,6 +249,7 @@ class Smplx(Contender):
             **_smplx_style_options(info),
         )
         self.model.requires_grad_(False)
+        self.model.to(DEVICE)
 
     def prepare(self, params, grad=False):
         return self._tensors(params, grad)
@@ -387,6 +399,28 @@ class SmplfitterTorch(Smplfitter):
 class SmplfitterNumpy(Smplfitter):
     name, kind, grad = "smplfitter-numpy", "numpy", False
 
+
+class _Compiled:
+    """Mixed into a torch contender: its module under ``torch.compile`` (default Inductor; the first
+    call of each shape compiles, which the warm-up call absorbs)."""
+
+    def __init__(self, info, files):
+        super().__init__(info, files)
+        self.model = _torch().compile(self.model)
+
+
+class SmplcoreTorchCompiled(_Compiled, SmplcoreTorch):
+    name = "smplcore-torch-compiled"
+    joints_note = SmplcoreTorch.joints_note + ", torch.compile"
+
+
+class SmplxCompiled(_Compiled, Smplx):
+    name = "smplx-compiled"
+    joints_note = Smplx.joints_note + ", torch.compile"
+
+
+#: Contenders added by ``bench/forward.py --compile``.
+COMPILED = {c.name: c for c in (SmplcoreTorchCompiled, SmplxCompiled)}
 
 CONTENDERS: dict[str, type[Contender]] = {
     c.name: c

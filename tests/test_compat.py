@@ -80,7 +80,9 @@ def test_install_as_smplx_registers_the_submodules():
         from smplx.lbs import lbs, blend_shapes, vertices2joints, batch_rodrigues, batch_rigid_transform
         from smplx.lbs import vertices2landmarks, find_dynamic_lmk_idx_and_bcoords
         from smplx.utils import to_tensor, to_np, Struct, SMPLXOutput
-        assert smplx.SMPLX is smplcore.SMPLX and smplx.lbs.__name__ == "smplcore.lbs"
+        assert smplx.SMPLX is smplcore.SMPLX and smplx.lbs.__name__ == "smplcore.smplx_compat.lbs"
+        import smplcore.lbs
+        assert smplcore.lbs is smplx.lbs
         assert len(smplx.joint_names.JOINT_NAMES) == 144 and smplx.vertex_ids.vertex_ids["smplx"]["nose"] == 9120
         print("ok")
     """)

@@ -201,6 +201,9 @@ def _reference_forward(setup: ModelSetup, source: ArraySource, coeffs: Any, rotm
             rows_ = contour_rows(rotmats, setup.neck_chain)
             corners = source.constant("contour_corners", like)[rows_]
             parts.append(barycentric_points(verts, corners, source.constant("contour_bary", like)[rows_]))
+    if setup.regressor is not None:
+        subset = verts[:, source.constant("regressor_ids", like)]
+        parts.append(namespace(verts).einsum("kn,bnd->bkd", source.constant("regressor_weights", like), subset))
     xp = namespace(verts)
     return verts, (xp.concat(parts, axis=1) if len(parts) > 1 else joints)
 
@@ -221,6 +224,8 @@ def _fast_forward(
     parts = [joints]
     if setup.keypoints.ids.size:
         parts += _keypoints(setup, arrays, coeffs, rotmats, transforms, verts, transl, kernel)
+    if setup.regressor is not None:
+        parts.append(_regressed(setup, arrays, coeffs, rotmats, transforms, verts, transl, kernel))
     xp = namespace(joints)
     return verts, (xp.concat(parts, axis=1) if len(parts) > 1 else joints)
 
@@ -260,3 +265,25 @@ def _keypoints(
             contour = c(prefix + "contour_corners", getattr(kp, prefix + "contour_corners"), verts)
             out.append(barycentric_points(verts, contour[rows_], dyn_bary))
     return out
+
+
+def _regressed(
+    setup: ModelSetup,
+    arrays: engine.BodyArrays,
+    coeffs: Any,
+    rotmats: Any,
+    transforms: Any,
+    verts: Any | None,
+    transl: Any | None,
+    kernel: str,
+) -> Any:
+    """(B, K, 3) the ``joint_regressors`` points (untranslated), from just the vertices their rows use."""
+    ids = setup.regressor.vertex_ids
+    if verts is None or kernel == "autograd":
+        subset = engine.posed_vertex_subset(coeffs, rotmats, transforms, arrays, ids, kernel)
+    else:
+        subset = verts[:, setup.const("regressor_ids", ids, verts)]
+        if transl is not None:
+            subset = subset - transl[:, None]
+    weights = setup.const("regressor_weights", setup.regressor.weights, subset)
+    return namespace(subset).einsum("kn,bnd->bkd", weights, subset)

@@ -35,6 +35,7 @@ SETUP_OPTIONS: dict[str, Any] = {
     "age": "adult",
     "kid_template_path": "",
     "v_template": None,
+    "joint_regressors": None,
 }
 
 
@@ -79,6 +80,7 @@ class ModelSetup:
     use_face_contour: bool
     neck_chain: list[int] = field(default_factory=list)
     keypoints: Keypoints | None = None
+    regressor: Any = None  # smplcore.keypoints.Regressor of the joint_regressors option, or None
     _cache: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -123,6 +125,7 @@ class ModelSetup:
         age: str = "adult",
         kid_template_path: str | Path | None = None,
         v_template: np.ndarray | None = None,
+        joint_regressors: Any = None,
         owner: str = "",
     ) -> ModelSetup:
         spec = get_spec(data.model_type)
@@ -236,6 +239,7 @@ class ModelSetup:
             extra_names,
             use_face_contour,
             neck_chain,
+            regressor=_regressor(joint_regressors, data),
         )
 
     def body_arrays(self, convert=np.asarray) -> engine.BodyArrays:
@@ -255,6 +259,8 @@ class ModelSetup:
             out += list(names.FACE_LANDMARKS[: len(self.data.lmk_faces_idx)])
             if self.use_face_contour:
                 out += list(names.FACE_CONTOUR)
+        if self.regressor is not None:
+            out += list(self.regressor.names)
         return out
 
     def pose_width(self, block_name: str) -> int:
@@ -266,6 +272,16 @@ class ModelSetup:
     def pca_blocks(self) -> frozenset[str]:
         """The pose blocks given as hand-PCA coefficients."""
         return self._cache["pca_blocks"]
+
+
+def _regressor(joint_regressors: Any, data: ModelData) -> Any:
+    """The ``joint_regressors`` option (convention -> regressor file, ``Regressor`` or ``"open"``) as one
+    stacked :class:`smplcore.keypoints.Regressor` checked against the model's vertex count, or None."""
+    if not joint_regressors:
+        return None
+    from smplcore.keypoints import load_regressors
+
+    return load_regressors(joint_regressors, num_vertices=data.num_vertices)
 
 
 def _check_count(name: str, value: int) -> None:

@@ -27,6 +27,8 @@ def constant_array(setup: ModelSetup, name: str) -> np.ndarray:
         "lmk_bary": lambda: d.lmk_bary_coords,
         "contour_corners": lambda: kp.contour_corners,
         "contour_bary": lambda: d.dynamic_lmk_bary_coords,
+        "regressor_ids": lambda: setup.regressor.vertex_ids,
+        "regressor_weights": lambda: setup.regressor.weights,
     }
     if name not in table:
         raise KeyError(f"no model constant named {name!r}")

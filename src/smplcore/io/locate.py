@@ -27,9 +27,9 @@ def locate_model_file(
 
     ``model_path`` may be a file (used as is), or a folder holding the official file names either
     directly or in a sub-folder named after the model type (``models/smplx/SMPLX_NEUTRAL.npz``), as
-    smplx lays them out. ``ext`` (default: :func:`default_ext`) is honoured for every model type; when that file is missing and the same
-    model is there in the other format (``.pkl`` / ``.npz``), that one is used. ``model_type="open"``
-    without a path gives the packaged open model.
+    smplx lays them out. ``ext`` (default: :func:`default_ext`) is honoured for every model type; when
+    that file is missing and the same model is there in the other format (``.pkl`` / ``.npz``), that one
+    is used. ``model_type="open"`` without a path gives the packaged open model.
     """
     if model_path is None or str(model_path) == "":
         if model_type is not None and get_spec(model_type).model_type == "open":

@@ -88,6 +88,8 @@ class ModuleArrays:
             return m.faces_tensor[m.dynamic_lmk_faces_idx]
         if name == "contour_bary":
             return m.dynamic_lmk_bary_coords
+        if name in ("regressor_ids", "regressor_weights"):
+            return getattr(m, f"_{name}")
         raise KeyError(f"no model constant named {name!r}")
 
     def trainable(self) -> bool:

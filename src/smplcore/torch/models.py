@@ -189,6 +189,11 @@ class SMPL(nn.Module):
                 self.register_buffer("dynamic_lmk_faces_idx", torch.tensor(d.dynamic_lmk_faces_idx, dtype=torch.long))
                 self.register_buffer("dynamic_lmk_bary_coords", as_float(d.dynamic_lmk_bary_coords))
                 self.register_buffer("neck_kin_chain", torch.as_tensor(setup.neck_chain, dtype=torch.long))
+        if setup.regressor is not None:  # joint_regressors: not smplx's, so not in the state_dict
+            self.register_buffer(
+                "_regressor_ids", torch.as_tensor(setup.regressor.vertex_ids, dtype=torch.long), persistent=False
+            )
+            self.register_buffer("_regressor_weights", as_float(setup.regressor.weights), persistent=False)
 
     @staticmethod
     def hand_buffer(block: str, kind: str) -> str:
