@@ -49,6 +49,8 @@ class BodyModel:
     dtype : float32 (default) or float64.
     kernel : ``"auto"`` (default), ``"blocked"`` or ``"reference"`` (the plain forward of
         :mod:`smplcore.engine.reference`); see :mod:`smplcore.engine.kernels`.
+    check_finite : refuse NaN / inf inputs with an error naming the argument (default True).
+    check_rotations : with ``pose2rot=False``, refuse matrices that are not rotations (default True).
 
     Examples
     --------
@@ -69,6 +71,8 @@ class BodyModel:
         is_rhand: bool = True,
         data: ModelData | None = None,
         kernel: str = "auto",
+        check_finite: bool = True,
+        check_rotations: bool = True,
         **options: Any,
     ) -> None:
         if data is None:
@@ -81,6 +85,7 @@ class BodyModel:
             raise ValueError(f"dtype: expected float32 or float64, got {self.dtype}")
         self.setup = ModelSetup.build(data, owner="BodyModel", **{k: v for k, v in options.items() if k in known})
         self.kernel = check_kernel(kernel)
+        self.check_finite, self.check_rotations = bool(check_finite), bool(check_rotations)
         self.source = SetupArrays(self.setup, lambda a: np.ascontiguousarray(a, dtype=self.dtype))
         self.faces = np.asarray(data.faces)
 
@@ -160,7 +165,7 @@ class BodyModel:
         allowed = set(self.pose_blocks) | {"betas", "expression", "transl"}
         for name in sorted(set(params) - allowed):
             warn_once("BodyModel.__call__", f"BodyModel: ignoring unknown keyword argument {name!r}", key=name)
-        arrays = {k: None if v is None else np.asarray(v, dtype=self.dtype) for k, v in params.items() if k in allowed}
+        arrays = {k: None if v is None else _as_array(k, v, self.dtype) for k, v in params.items() if k in allowed}
         out = evaluate(
             self.setup,
             self.source,
@@ -169,6 +174,8 @@ class BodyModel:
             vertices=return_verts,
             like=np.zeros((1, 1), self.dtype),
             kernel=self.kernel,
+            check_finite=self.check_finite,
+            check_rotations=self.check_rotations,
         )
         return BodyOutput(
             vertices=out.vertices,
@@ -180,3 +187,18 @@ class BodyModel:
             transl=out.transl,
             pose=dict(out.pose),
         )
+
+
+def _as_array(name: str, value: Any, dtype: np.dtype) -> np.ndarray:
+    """``value`` as a NumPy array of ``dtype``, or a TypeError naming the argument and the fix."""
+    if hasattr(value, "requires_grad") and getattr(value, "requires_grad", False):
+        raise TypeError(
+            f"{name}: a torch tensor that requires grad; BodyModel is NumPy only: pass "
+            f"{name}.detach().cpu().numpy(), or use smplcore.create(...) for gradients"
+        )
+    if getattr(value, "is_sparse", False) or type(value).__module__.startswith("scipy.sparse"):
+        raise TypeError(f"{name}: sparse arrays are not accepted; pass a dense array")
+    try:
+        return np.asarray(value, dtype=dtype)
+    except (TypeError, ValueError, RuntimeError) as exc:
+        raise TypeError(f"{name}: expected an array of numbers ({exc})") from None

@@ -14,10 +14,11 @@ from typing import Any, Protocol
 from smplcore.engine import body as engine
 from smplcore.engine import reference
 from smplcore.engine.backend import eye, from_numpy, host_numpy, is_torch, namespace
-from smplcore.engine.kernels.select import select
+from smplcore.engine.kernels.select import select, traced
 from smplcore.engine.landmarks import barycentric_points, contour_rows
 from smplcore.engine.rotations import rodrigues
 from smplcore.engine.skeleton import records_gradients
+from smplcore.frontend import inputs
 from smplcore.frontend.inputs import batch_of, rotmat_rows, rows
 from smplcore.frontend.setup import ModelSetup
 
@@ -88,6 +89,8 @@ def evaluate(
     vertices: bool = True,
     like: Any = None,
     kernel: str = "auto",
+    check_finite: bool = True,
+    check_rotations: bool = False,
 ) -> Evaluation:
     """Run the model.
 
@@ -101,12 +104,31 @@ def evaluate(
     vertices : build the mesh; without it only the joints (extra joints and landmarks included).
     like : an array giving namespace, dtype and device when every parameter is None.
     kernel : ``"auto"`` or a kernel to force (:data:`smplcore.engine.kernels.KERNELS`).
+    check_finite : refuse NaN / inf inputs (naming the argument and the first bad index); skipped for
+        non-CPU tensors and under tracing, where it would cost a device round trip.
+    check_rotations : with ``rotation_matrices``, refuse matrices that are not rotations.
     """
     spec = setup.spec
     given = {k: v for k, v in params.items() if v is not None}
     ref = next(iter(given.values()), like)
     xp = namespace(ref)
     batch = batch_of({k: (v if v.ndim > 1 else v[None]) for k, v in given.items()})
+    if batch == 0:  # empty outputs of the right shapes: one zero body, then no rows of it
+        ones = {k: v.sum(axis=0, keepdims=True) * 0 if v.ndim > 1 else v for k, v in given.items()}  # (1, ...) zeros
+        return _empty(
+            evaluate(
+                setup,
+                source,
+                ones,
+                rotation_matrices=rotation_matrices,
+                vertices=vertices,
+                like=like,
+                kernel=kernel,
+                check_finite=False,
+            )
+        )
+    if check_finite and not (is_torch(ref) and (ref.device.type != "cpu" or traced())):
+        inputs.check_finite(given)
     zeros = source.constant("zero", ref)  # (1, 1) in the model's dtype and device
     chosen = select(kernel, zeros, gradients=_records(given.values()), trainable_model=source.trainable())
 
@@ -130,6 +152,8 @@ def evaluate(
                 if value is None
                 else rotmat_rows(block.name, value, batch, block.num_joints)
             )
+            if check_rotations and value is not None:
+                inputs.check_rotations(block.name, pose[block.name])
         rotmats = full_pose = xp.concat(list(pose.values()), axis=1)
     else:
         for block in spec.pose_blocks:
@@ -171,6 +195,26 @@ def evaluate(
         expression=expression,
         pose=pose,
         kernel=chosen,
+    )
+
+
+def _empty(out: Evaluation) -> Evaluation:
+    """``out`` (of one body) with no rows: the outputs of a batch of 0."""
+
+    def none_or_empty(x: Any) -> Any:
+        return None if x is None else x[:0]
+
+    return Evaluation(
+        vertices=none_or_empty(out.vertices),
+        joints=out.joints[:0],
+        untranslated_joints=out.untranslated_joints[:0],
+        transl=none_or_empty(out.transl),
+        full_pose=out.full_pose[:0],
+        rotmats=out.rotmats[:0],
+        betas=out.betas[:0],
+        expression=none_or_empty(out.expression),
+        pose={k: v[:0] for k, v in out.pose.items()},
+        kernel=out.kernel,
     )
 
 

@@ -8,7 +8,11 @@ Accepted layouts, and nothing else (a wrong layout is an error naming the argume
   one-joint block;
 * ``transl``: (B, 3) or (3,).
 
-Batch 1 broadcasts to the batch of the other parameters.
+Batch 1 broadcasts to the batch of the other parameters; batch 0 gives empty outputs.
+
+Values are checked to be finite (the first bad index is named) unless ``check_finite=False``; the check
+is skipped where it would cost a device round trip or cannot be traced (non-CPU tensors, ``torch.compile``).
+Rotation matrices can be checked to be rotations (``check_rotations``).
 """
 
 from __future__ import annotations
@@ -20,11 +24,14 @@ from smplcore.errors import ShapeError
 
 
 def batch_of(params: dict[str, Any]) -> int:
-    """The batch size of a call: the largest leading size among the given (batched) parameters."""
+    """The batch size of a call: the largest leading size among the given (batched) parameters, or 0
+    when one of them is empty."""
     batch = 1
     for value in params.values():
         if value is not None and value.ndim > 1 and value.shape[0] > batch:
             batch = value.shape[0]
+    if any(v is not None and v.ndim > 1 and v.shape[0] == 0 for v in params.values()):
+        batch = 0
     for name, value in params.items():
         if value is not None and value.ndim > 1 and value.shape[0] not in (1, batch):
             sizes = {k: v.shape[0] for k, v in params.items() if v is not None and v.ndim > 1}
@@ -41,6 +48,8 @@ def rows(name: str, value: Any, batch: int, width: int, *, allow_narrower: bool 
     ``joints`` > 0 marks an axis-angle block of that many joints, which may also be given as (B, joints, 3).
     """
     xp = namespace(value)
+    if value.ndim == 0:
+        raise ShapeError(f"{name}: expected shape {_layouts(width, allow_narrower, joints)}, got a scalar")
     if value.ndim == 1:
         value = value[None]
     if value.ndim == 3 and joints and tuple(value.shape[1:]) == (joints, 3):
@@ -49,7 +58,16 @@ def rows(name: str, value: Any, batch: int, width: int, *, allow_narrower: bool 
         raise ShapeError(f"{name}: expected shape {_layouts(width, allow_narrower, joints)}, got {tuple(value.shape)}")
     n = value.shape[1]
     if n != width and not (allow_narrower and n < width):
-        raise ShapeError(f"{name}: expected shape {_layouts(width, allow_narrower, joints)}, got {tuple(value.shape)}")
+        hint = ""
+        if name == "body_pose" and n == width + 3:
+            hint = f"; {n} = global_orient (3) + body_pose ({width}): pass global_orient=pose[:, :3], body_pose=pose[:, 3:]"
+        elif name.endswith("hand_pose") and n == 45 and width < 45:
+            hint = " (PCA coefficients; use_pca=False for 45 axis-angle values)"
+        elif name.endswith("hand_pose") and width == 45 and n < 45:
+            hint = " (axis-angle; use_pca=True takes PCA coefficients)"
+        raise ShapeError(
+            f"{name}: expected shape {_layouts(width, allow_narrower, joints)}, got {tuple(value.shape)}{hint}"
+        )
     if n < width:
         pad = xp.zeros_like(value[:, :1])
         value = xp.concat([value, *([pad] * (width - n))], axis=1)
@@ -70,8 +88,46 @@ def rotmat_rows(name: str, value: Any, batch: int, joints: int) -> Any:
         value = value[:, None]
     elif value.ndim == 2 and value.shape[1] == 9 * joints:
         value = value.reshape(value.shape[0], joints, 3, 3)
-    if value.ndim != 4 or tuple(value.shape[1:]) != (joints, 3, 3):
+    if value.ndim < 2 or value.ndim != 4 or tuple(value.shape[1:]) != (joints, 3, 3):
         raise ShapeError(f"{name}: expected rotation matrices of shape (B, {joints}, 3, 3), got {tuple(value.shape)}")
     if value.shape[0] != batch:
         value = xp.broadcast_to(value, (batch, joints, 3, 3))
     return value
+
+
+def check_finite(params: dict[str, Any]) -> None:
+    """A ValueError naming the first parameter holding NaN or inf, and the first such index."""
+    for name, value in params.items():
+        if value is None or value.ndim == 0 or value.shape[0] == 0:
+            continue
+        xp = namespace(value)
+        finite = xp.isfinite(value)
+        if not bool(finite.all()):
+            bad = tuple(int(i) for i in xp.argwhere(~finite)[0])
+            raise ValueError(
+                f"{name}: non-finite value {value[bad]} at index {bad}; the outputs would be NaN "
+                f"(check_finite=False skips this check)"
+            )
+
+
+def check_rotations(name: str, rotmats: Any, tol: float = 1e-3) -> None:
+    """A ValueError unless every (..., 3, 3) matrix is a rotation: orthonormal with determinant +1 (within ``tol``)."""
+    if rotmats.shape[0] == 0:
+        return
+    xp = namespace(rotmats)
+    eye = (
+        xp.eye(3, dtype=rotmats.dtype)
+        if xp.__name__ == "numpy"
+        else xp.eye(3, dtype=rotmats.dtype, device=rotmats.device)
+    )
+    err = xp.abs(rotmats.mT @ rotmats - eye).reshape(*rotmats.shape[:-2], 9).max(axis=-1)
+    if xp.__name__ == "torch":
+        err = err.values if hasattr(err, "values") else err
+    det = xp.linalg.det(rotmats)
+    bad = (err > tol) | (xp.abs(det - 1) > tol)
+    if bool(bad.any()):
+        index = tuple(int(i) for i in xp.argwhere(bad)[0])
+        raise ValueError(
+            f"{name}: the matrix at index {index} is not a rotation (|RᵀR - I| = {float(err[index]):.3g}, "
+            f"det = {float(det[index]):.3g}); pose2rot=False takes rotation matrices"
+        )

@@ -85,7 +85,7 @@ SMPLX_FORWARD_KEYWORDS = frozenset(
     }
 )
 # smplcore's own keywords, known besides smplx's.
-OWN_KEYWORDS = frozenset({"kernel", "fix_left_shapedirs", "data"})
+OWN_KEYWORDS = frozenset({"kernel", "fix_left_shapedirs", "data", "check_finite", "check_rotations"})
 
 
 def split_keywords(
@@ -105,7 +105,11 @@ def split_keywords(
 
 def warn_unknown(owner: str, unknown: Iterable[str], *, forward: bool = False) -> None:
     """One warning per unknown keyword name (per owner and process), with a close match where there is one."""
-    known = sorted((SMPLX_FORWARD_KEYWORDS | {"kernel"}) if forward else (SMPLX_CONSTRUCTOR_KEYWORDS | OWN_KEYWORDS))
+    known = sorted(
+        (SMPLX_FORWARD_KEYWORDS | {"kernel", "check_finite", "check_rotations"})
+        if forward
+        else (SMPLX_CONSTRUCTOR_KEYWORDS | OWN_KEYWORDS)
+    )
     for name in sorted(unknown):
         if forward and name in SMPLX_FORWARD_KEYWORDS:
             continue  # accepted by another smplx class (e.g. hand_pose given to SMPL): ignored silently

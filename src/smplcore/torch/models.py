@@ -110,6 +110,8 @@ class SMPL(nn.Module):
         joint_mapper: Callable | None = None,
         is_rhand: bool = True,
         kernel: str = "auto",
+        check_finite: bool = True,
+        check_rotations: bool = False,
         **kwargs: Any,
     ) -> None:
         super().__init__()
@@ -126,6 +128,7 @@ class SMPL(nn.Module):
             setup_opts["use_pca"] = False  # a Layer never reads PCA hands; smplx still registers the bases
         self.setup = setup = ModelSetup.build(data, owner=name, **setup_opts)
         self.kernel = check_kernel(kernel)
+        self.check_finite, self.check_rotations = bool(check_finite), bool(check_rotations)
         self.dtype = dtype
         self.gender = gender
         self.age = setup_opts.get("age", SETUP_OPTIONS["age"])
@@ -288,6 +291,8 @@ class SMPL(nn.Module):
         if value is None:
             return None
         ref = self.v_template
+        if isinstance(value, torch.Tensor) and value.layout != torch.strided:
+            raise TypeError(f"{name}: sparse tensors are not accepted; pass {name}.to_dense()")
         if isinstance(value, torch.Tensor) and value.dtype == ref.dtype and value.device == ref.device:
             return value
         try:
@@ -299,8 +304,10 @@ class SMPL(nn.Module):
         """Pose the model; the keywords (and positional order) are smplx's for this class.
 
         Pose blocks left out use the module's parameters (none for Layer classes: zero rotation);
-        a parameter of batch 1 broadcasts to the batch of the others. ``kernel=`` forces a kernel for
-        this call (see :mod:`smplcore.engine.kernels`).
+        a parameter of batch 1 broadcasts to the batch of the others; batch 0 gives empty outputs.
+        smplcore's keywords: ``kernel=`` forces a kernel for this call (see :mod:`smplcore.engine.kernels`),
+        ``check_finite=False`` skips the NaN / inf check of the inputs (on by default, CPU only),
+        ``check_rotations=True`` checks that rotation-matrix inputs are rotations.
         """
         if len(args) > len(self.FORWARD_ARGS):
             raise TypeError(
@@ -316,6 +323,8 @@ class SMPL(nn.Module):
         pose2rot = bool(kwargs.pop("pose2rot", True)) and not self.LAYER
         return_shaped = bool(kwargs.pop("return_shaped", True))
         kernel = kwargs.pop("kernel", self.kernel)
+        finite = bool(kwargs.pop("check_finite", self.check_finite))
+        rotations = bool(kwargs.pop("check_rotations", self.check_rotations))
         names = [b.name for b in self.SPEC.pose_blocks] + ["betas", "transl"]
         names += ["expression"] if self.SPEC.has_expression else []
         warn_unknown(f"{type(self).__name__}.forward", set(kwargs) - set(names), forward=True)
@@ -329,6 +338,8 @@ class SMPL(nn.Module):
             vertices=return_verts,
             like=self.v_template,
             kernel=kernel,
+            check_finite=finite,
+            check_rotations=rotations,
         )
         vertices, joints = out.vertices, out.untranslated_joints
         if self.joint_mapper is not None:
