@@ -1,0 +1,414 @@
+"""The implementation behind every torch model class: :class:`SMPL` (smplx's root class) reads the model,
+registers smplx's buffers and parameters, and runs the forward through :func:`smplcore.frontend.evaluate`.
+The subclasses in :mod:`smplcore.torch.models` only state data."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from smplcore.engine import reference
+from smplcore.engine.kernels.select import check_kernel, traced
+from smplcore.errors import ShapeError
+from smplcore.family import names as family_names
+from smplcore.family.specs import SMPL as SMPL_SPEC
+from smplcore.family.specs import FamilySpec
+from smplcore.frontend import SETUP_OPTIONS, ModelSetup, evaluate
+from smplcore.io.model_data import ModelData
+from smplcore.torch.arrays import ModuleArrays
+from smplcore.torch.keywords import split_keywords, warn_unknown
+from smplcore.torch.outputs import (
+    Deferred,
+    ModelOutput,
+    SMPLOutput,
+    lazy,
+)
+
+__all__ = ["SMPL", "VertexJointSelector"]
+
+
+class VertexJointSelector(nn.Module):
+    """Holds smplx's ``extra_joints_idxs`` buffer: the vertices appended to the joints."""
+
+    def __init__(self, ids: list[int]) -> None:
+        super().__init__()
+        self.register_buffer("extra_joints_idxs", torch.tensor(ids, dtype=torch.long))
+
+
+class SMPL(nn.Module):
+    """SMPL (24 joints; outputs 45 with the extra vertex joints), and the implementation of every class."""
+
+    SPEC: FamilySpec = SMPL_SPEC
+    LAYER = False
+    NUM_JOINTS = 23
+    NUM_BODY_JOINTS = 23
+    SHAPE_SPACE_DIM = 300
+    DEFAULT_EXT = "pkl"
+    FORWARD_ARGS: tuple[str, ...] = (
+        "betas",
+        "body_pose",
+        "global_orient",
+        "transl",
+        "return_verts",
+        "return_full_pose",
+        "pose2rot",
+    )
+    OUTPUT: type = SMPLOutput
+    MAPPER_TAKES_VERTICES = False
+    #: smplx's parameters, in the order it creates them; the Layer class creates only LAYER_PARAMETERS.
+    PARAMETERS: tuple[str, ...] = ("betas", "global_orient", "body_pose", "transl")
+    LAYER_PARAMETERS: tuple[str, ...] = ()
+
+    def __init__(
+        self,
+        model_path: str | Path | None = None,
+        *,
+        data_struct: Any = None,
+        data: ModelData | None = None,
+        gender: str = "neutral",
+        ext: str | None = None,
+        dtype: torch.dtype = torch.float32,
+        batch_size: int = 1,
+        joint_mapper: Callable | None = None,
+        is_rhand: bool = True,
+        kernel: str = "auto",
+        check_finite: bool = True,
+        check_rotations: bool = False,
+        **kwargs: Any,
+    ) -> None:
+        super().__init__()
+        spec, name = self.SPEC, type(self).__name__
+        setup_opts, initial, create = split_keywords(name, kwargs, self.PARAMETERS)
+        # smplx takes every option in every class and ignores those that do not apply: so do we
+        if not spec.landmarks:
+            setup_opts.pop("use_face_contour", None)
+        if not spec.hand_blocks:
+            for option in ("use_pca", "num_pca_comps", "flat_hand_mean"):
+                setup_opts.pop(option, None)
+        data = _load(type(self), model_path, data_struct, data, gender, ext or self.DEFAULT_EXT, is_rhand)
+        if self.LAYER and "use_pca" not in setup_opts and not _has_hand_pca(data):
+            setup_opts["use_pca"] = False  # a Layer never reads PCA hands; smplx still registers the bases
+        self.setup = setup = ModelSetup.build(data, owner=name, **setup_opts)
+        self.kernel = check_kernel(kernel)
+        self.check_finite, self.check_rotations = bool(check_finite), bool(check_rotations)
+        self.dtype = dtype
+        self.gender = gender
+        self.age = setup_opts.get("age", SETUP_OPTIONS["age"])
+        self.batch_size = batch_size
+        self.joint_mapper = joint_mapper
+        if spec.hand_blocks:
+            self.use_pca, self.num_pca_comps, self.flat_hand_mean = (
+                setup.use_pca,
+                setup.num_pca_comps,
+                setup.flat_hand_mean,
+            )
+        if spec.landmarks:
+            self.use_face_contour = setup.use_face_contour
+        self.faces = np.asarray(data.faces).astype(data.faces_dtype)
+        self.parent_list = tuple(int(p) for p in data.parents)
+        self._register_buffers(setup, dtype)
+        self.source = ModuleArrays(self)
+        for param in self.PARAMETERS:
+            if create[param] and (not self.LAYER or param in self.LAYER_PARAMETERS):
+                self._create_parameter(param, initial.get(param), batch_size, dtype)
+
+    # -- construction -------------------------------------------------------------------------------
+
+    def _register_buffers(self, setup: ModelSetup, dtype: torch.dtype) -> None:
+        d = setup.data
+
+        def as_float(a: np.ndarray) -> torch.Tensor:
+            return torch.tensor(np.asarray(a), dtype=dtype)
+
+        self.register_buffer("faces_tensor", torch.tensor(np.asarray(d.faces), dtype=torch.long))
+        self.register_buffer("shapedirs", as_float(setup.shapedirs))
+        if self.SPEC.has_expression:
+            self.register_buffer("expr_dirs", as_float(setup.exprdirs))
+        self.register_buffer("v_template", as_float(d.v_template))
+        self.register_buffer("J_regressor", as_float(d.J_regressor))
+        num_posedirs = 9 * (d.num_joints - 1)
+        posedirs = (
+            np.zeros((num_posedirs, 3 * d.num_vertices))
+            if d.posedirs is None
+            else np.asarray(d.posedirs).reshape(-1, d.posedirs.shape[-1]).T
+        )
+        self.register_buffer("posedirs", as_float(posedirs))
+        self.register_buffer("parents", torch.tensor(np.asarray(d.parents), dtype=torch.long))
+        self.register_buffer("lbs_weights", as_float(d.weights))
+        extra = (
+            list(family_names.VERTEX_IDS_MANO.values())
+            if self.SPEC.model_type == "mano"
+            else list(setup.extra_joint_ids)
+        )
+        self.vertex_joint_selector = VertexJointSelector(extra)
+        for block, comps in setup.hand_components.items():
+            self.register_buffer(self.hand_buffer(block, "components"), as_float(comps))
+        for block, mean in setup.hand_means.items():
+            self.register_buffer(self.hand_buffer(block, "mean"), as_float(mean))
+        if setup.hand_means:
+            self.register_buffer("pose_mean", as_float(setup.pose_mean))
+        if self.SPEC.landmarks:
+            self.register_buffer("lmk_faces_idx", torch.tensor(d.lmk_faces_idx, dtype=torch.long))
+            self.register_buffer("lmk_bary_coords", as_float(d.lmk_bary_coords))
+            if setup.use_face_contour:
+                self.register_buffer("dynamic_lmk_faces_idx", torch.tensor(d.dynamic_lmk_faces_idx, dtype=torch.long))
+                self.register_buffer("dynamic_lmk_bary_coords", as_float(d.dynamic_lmk_bary_coords))
+                self.register_buffer("neck_kin_chain", torch.as_tensor(setup.neck_chain, dtype=torch.long))
+        if setup.regressor is not None:  # joint_regressors: not smplx's, so not in the state_dict
+            self.register_buffer(
+                "_regressor_ids", torch.as_tensor(setup.regressor.vertex_ids, dtype=torch.long), persistent=False
+            )
+            self.register_buffer("_regressor_weights", as_float(setup.regressor.weights), persistent=False)
+
+    @staticmethod
+    def hand_buffer(block: str, kind: str) -> str:
+        """smplx's buffer names: ``left_hand_components``, ``right_hand_mean``, ``hand_mean``, ..."""
+        return block.replace("_pose", "") + "_" + kind
+
+    def _parameter_width(self, name: str) -> int:
+        if name == "betas":
+            return self.setup.num_betas
+        if name == "expression":
+            return self.setup.num_expression_coeffs
+        if name == "transl":
+            return 3
+        if name == "body_pose" and name not in {b.name for b in self.SPEC.pose_blocks}:
+            return 3 * self.NUM_BODY_JOINTS  # smplx creates it for MANO and FLAME too, unused
+        return self.setup.pose_width(name)
+
+    def _create_parameter(self, name: str, value: Any, batch_size: int, dtype: torch.dtype) -> None:
+        if value is None:
+            tensor = torch.zeros(batch_size, self._parameter_width(name), dtype=dtype)
+        else:
+            tensor = torch.as_tensor(value, dtype=dtype).detach().clone()
+            if tensor.ndim == 1:
+                tensor = tensor[None]
+        self.register_parameter(name, nn.Parameter(tensor, requires_grad=True))
+
+    # -- smplx's accessors --------------------------------------------------------------------------
+
+    @property
+    def num_betas(self) -> int:
+        return self.setup.num_betas
+
+    @property
+    def num_expression_coeffs(self) -> int:
+        return self.setup.num_expression_coeffs
+
+    @property
+    def joint_names(self) -> list[str]:
+        """Names of ``output.joints`` (before any ``joint_mapper``), in order."""
+        return self.setup.output_joint_names
+
+    def name(self) -> str:
+        return self.SPEC.display_name
+
+    def get_num_verts(self) -> int:
+        return int(self.v_template.shape[0])
+
+    def get_num_faces(self) -> int:
+        return int(self.faces.shape[0])
+
+    def extra_repr(self) -> str:
+        lines = [
+            f"Gender: {str(self.gender).upper()}",
+            f"Number of joints: {self.J_regressor.shape[0]}",
+            f"Betas: {self.num_betas}",
+        ]
+        if self.SPEC.has_expression:
+            lines.append(f"Number of expression coefficients: {self.num_expression_coeffs}")
+        if self.SPEC.hand_blocks:
+            if self.use_pca:
+                lines.append(f"Number of PCA components: {self.num_pca_comps}")
+            lines.append(f"Flat hand mean: {self.flat_hand_mean}")
+        return "\n".join(lines)
+
+    @torch.no_grad()
+    def reset_params(self, **params_dict: Any) -> None:
+        for param_name, param in self.named_parameters():
+            if param_name in params_dict:
+                param[:] = torch.as_tensor(params_dict[param_name])
+            else:
+                param.fill_(0)
+
+    def forward_shape(self, betas: torch.Tensor | None = None) -> ModelOutput:
+        """The shaped template (no pose): ``vertices == v_shaped``, (B, V, 3)."""
+        betas = self._as_tensor("betas", betas if betas is not None else getattr(self, "betas", None))
+        if betas is None:
+            betas = self.v_template.new_zeros(1, self.num_betas)
+        v_shaped = self._v_shaped(betas)
+        return self.OUTPUT(vertices=v_shaped, betas=betas, v_shaped=v_shaped)
+
+    def _v_shaped(self, betas: torch.Tensor) -> torch.Tensor:
+        """(B, V, 3) template + shape blend of ``betas`` (no expression, no pose), from the buffers."""
+        if betas.ndim == 1:
+            betas = betas[None]
+        if betas.shape[-1] > self.num_betas:
+            raise ShapeError(f"betas: expected shape (B, <={self.num_betas}), got {tuple(betas.shape)}")
+        return reference.shape_blend(self.v_template, self.shapedirs[:, :, : betas.shape[-1]], betas)
+
+    # -- forward -----------------------------------------------------------------------------------
+
+    def _as_tensor(self, name: str, value: Any) -> torch.Tensor | None:
+        if value is None:
+            return None
+        ref = self.v_template
+        if isinstance(value, torch.Tensor) and value.layout != torch.strided:
+            raise TypeError(f"{name}: sparse tensors are not accepted; pass {name}.to_dense()")
+        if isinstance(value, torch.Tensor) and value.dtype == ref.dtype and value.device == ref.device:
+            return value
+        try:
+            return torch.as_tensor(value, dtype=ref.dtype, device=ref.device)
+        except (TypeError, ValueError, RuntimeError) as exc:
+            raise TypeError(f"{name}: expected a tensor or array of numbers ({exc})") from None
+
+    def forward(self, *args: Any, **kwargs: Any) -> ModelOutput:
+        """Pose the model; the keywords (and positional order) are smplx's for this class.
+
+        Pose blocks left out use the module's parameters (none for Layer classes: zero rotation);
+        a parameter of batch 1 broadcasts to the batch of the others; batch 0 gives empty outputs.
+        smplcore's keywords: ``kernel=`` forces a kernel for this call (see :mod:`smplcore.engine.kernels`),
+        ``check_finite=False`` skips the NaN / inf check of the inputs (on by default, CPU only),
+        ``check_rotations=True`` checks that rotation-matrix inputs are rotations.
+        """
+        if len(args) > len(self.FORWARD_ARGS):
+            raise TypeError(
+                f"{type(self).__name__}.forward takes at most {len(self.FORWARD_ARGS)} positional "
+                f"arguments ({', '.join(self.FORWARD_ARGS)})"
+            )
+        for key, value in zip(self.FORWARD_ARGS, args):
+            if key in kwargs:
+                raise TypeError(f"{type(self).__name__}.forward got multiple values for argument {key!r}")
+            kwargs[key] = value
+        return_verts = bool(kwargs.pop("return_verts", True))
+        return_full_pose = bool(kwargs.pop("return_full_pose", False))
+        pose2rot = bool(kwargs.pop("pose2rot", True)) and not self.LAYER
+        return_shaped = bool(kwargs.pop("return_shaped", True))
+        kernel = kwargs.pop("kernel", self.kernel)
+        finite = bool(kwargs.pop("check_finite", self.check_finite))
+        rotations = bool(kwargs.pop("check_rotations", self.check_rotations))
+        names = [b.name for b in self.SPEC.pose_blocks] + ["betas", "transl"]
+        names += ["expression"] if self.SPEC.has_expression else []
+        warn_unknown(f"{type(self).__name__}.forward", set(kwargs) - set(names), forward=True)
+        given = {k: self._as_tensor(k, kwargs.get(k)) for k in names}
+        params = self._with_defaults(given, use_pose_defaults=pose2rot)
+        out = evaluate(
+            self.setup,
+            self.source,
+            params,
+            rotation_matrices=not pose2rot,
+            vertices=return_verts,
+            like=self.v_template,
+            kernel=kernel,
+            check_finite=finite,
+            check_rotations=rotations,
+        )
+        vertices, joints = out.vertices, out.untranslated_joints
+        if self.joint_mapper is not None:
+            joints = (
+                self.joint_mapper(joints=joints, vertices=vertices)
+                if self.MAPPER_TAKES_VERTICES
+                else self.joint_mapper(joints)
+            )
+        if out.transl is not None:  # the evaluation translated the vertices already
+            joints = joints + out.transl[:, None]
+        betas = params.get("betas")
+        fields = {
+            "vertices": vertices,
+            "joints": joints,
+            "betas": out.betas if betas is None else betas,
+            "full_pose": out.full_pose if return_full_pose else None,
+            **out.pose,
+        }
+        if self.SPEC.has_expression:
+            fields["expression"] = out.expression
+        if self.OUTPUT_TRANSL:  # smplx fills it for SMPLXLayer only
+            fields["transl"] = (
+                out.transl if out.transl is not None else self.v_template.new_zeros(out.betas.shape[0], 3)
+            )
+        if self.SPEC.model_type == "smplx" and not self.LAYER and return_shaped and return_verts:
+            shape = out.betas[:, : self.num_betas]
+            if traced():
+                fields["v_shaped"] = self._v_shaped(shape)
+            else:
+                shape = shape.clone()  # a later in-place edit must not change it
+                fields["v_shaped"] = Deferred(self._in_current_grad_mode(lambda: self._v_shaped(shape)))
+        known = self.OUTPUT.__dataclass_fields__
+        output = self.OUTPUT if not any(type(v) is Deferred for v in fields.values()) else lazy(self.OUTPUT)
+        return output(**{k: v for k, v in fields.items() if k in known})
+
+    OUTPUT_TRANSL = False
+
+    @staticmethod
+    def _in_current_grad_mode(fn: Callable[[], torch.Tensor]) -> Callable[[], torch.Tensor]:
+        """``fn`` to be run later (a deferred output) under the grad / inference mode of now."""
+        grad, inference = torch.is_grad_enabled(), torch.is_inference_mode_enabled()
+
+        def run() -> torch.Tensor:
+            with torch.inference_mode(inference), torch.set_grad_enabled(grad):
+                return fn()
+
+        return run
+
+    def _with_defaults(self, given: dict[str, torch.Tensor | None], use_pose_defaults: bool) -> dict:
+        """Fill what the call left out from the module's parameters, without the batch-size trap.
+
+        A parameter created with ``batch_size=b`` joins a call of another batch size when all its
+        rows are equal (e.g. untouched zeros); otherwise the mismatch is an error naming it.
+        """
+        pose_names = {b.name for b in self.SPEC.pose_blocks}
+        batch = 1
+        for key, value in given.items():
+            if value is not None and value.ndim > 1 and (use_pose_defaults or key not in pose_names):
+                batch = max(batch, value.shape[0])
+        explicit = any(v is not None for v in given.values())
+        params = dict(given)
+        for key, value in given.items():
+            if value is not None or (key in pose_names and not use_pose_defaults):
+                continue
+            default = getattr(self, key, None)
+            if not isinstance(default, torch.Tensor):
+                continue
+            if default.shape[0] not in (1, batch) and explicit:
+                if traced() or bool(torch.all(default == default[:1])):
+                    default = default[:1]
+                else:
+                    raise ShapeError(
+                        f"{key}: the module's parameter has batch size {default.shape[0]} "
+                        f"(batch_size at construction), but this call has batch size {batch}; "
+                        f"pass {key} explicitly"
+                    )
+            params[key] = default
+        return params
+
+
+def _load(
+    cls: type, model_path: Any, data_struct: Any, data: ModelData | None, gender: str, ext: str, is_rhand: bool
+) -> ModelData:
+    """The model's data: given, from smplx's ``data_struct``, or from the file or folder."""
+    from smplcore.io.locate import read_model
+    from smplcore.io.model_files import from_official_arrays
+
+    spec = cls.SPEC
+    if data is None and data_struct is not None:
+        data = from_official_arrays(
+            Path(f"<data_struct for {cls.__name__}>"), dict(vars(data_struct)), spec.model_type, gender
+        )
+    if data is None:
+        data = read_model(model_path, spec.model_type, gender=gender, ext=ext, is_rhand=is_rhand)
+    if data.model_type != spec.model_type:
+        raise ValueError(
+            f"{cls.__name__} cannot run a {data.model_type!r} model from {data.source}; "
+            f"use smplcore.create() to pick the class from the file"
+        )
+    return data
+
+
+def _has_hand_pca(data: ModelData) -> bool:
+    sides = {"left", "right"} if data.model_type != "mano" else {data.gender}
+    return all(getattr(data, f"hands_components_{side}", None) is not None for side in sides)
