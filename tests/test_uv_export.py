@@ -126,8 +126,8 @@ def test_obj_with_uv_mtl_and_texture(tmp_path, smplx):
     first_face = next(line for line in text.splitlines() if line.startswith("f "))
     f0, t0 = smplx.faces[0] + 1, ft[0] + 1
     assert first_face == "f " + " ".join(f"{a}/{b}" for a, b in zip(f0, t0))
-    assert "map_Kd body.png" in (tmp_path / "body.mtl").read_text()
-    np.testing.assert_array_equal(load_texture(tmp_path / "body.png"), uv_grid_texture())
+    assert "map_Kd body_texture.png" in (tmp_path / "body.mtl").read_text()
+    np.testing.assert_array_equal(load_texture(tmp_path / "body_texture.png"), uv_grid_texture())
     # trimesh keeps the vertex order with maintain_order=True, and splits the seams by itself without it
     kept = trimesh.load(path, process=False, maintain_order=True)
     np.testing.assert_allclose(kept.vertices, verts, atol=1e-6)

@@ -78,7 +78,7 @@ def save_mesh(
             OBJ only: written as ``vt`` lines and ``f v/vt`` faces.
         texture: optional image for the UV map (needs ``uv``, OBJ only): an image file, an
             (H, W, 3|4) uint8 array or ``"uv-grid"`` (:func:`~smplcore.export.uv.uv_grid_texture`).
-            Written as ``<stem>.png`` beside the OBJ, with a ``<stem>.mtl`` whose ``map_Kd`` names it.
+            Written as ``<stem>_texture.png`` beside the OBJ, with a ``<stem>.mtl`` whose ``map_Kd`` names it.
 
     Returns:
         The path written, as a :class:`pathlib.Path`.
@@ -145,7 +145,7 @@ def _write_textured_obj(
     lines = ["# written by smplcore"]
     if image is not None:
         material = out.stem
-        png = out.with_suffix(".png")
+        png = out.with_name(f"{out.stem}_texture.png")
         png.write_bytes(encode_png(image))
         out.with_suffix(".mtl").write_text(
             f"# written by smplcore\nnewmtl {material}\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nd 1\nillum 1\n"
