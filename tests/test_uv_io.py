@@ -70,3 +70,17 @@ def test_bad_uv_arrays_name_the_key(fake_models, tmp_path):
     np.savez(tmp_path / "no_vt.npz", **arrays)
     with pytest.raises(ModelFileError, match="needs both 'vt' and 'ft'"):
         load_model(tmp_path / "no_vt.npz")
+
+
+def test_open_model_has_makehuman_uvs():
+    import smplcore
+
+    data = smplcore.BodyModel(model_type="open").setup.data
+    assert data.has_uv
+    assert data.vt.shape[0] > data.num_vertices  # seams
+    assert data.ft.shape == data.faces.shape
+    assert data.vt.min() >= 0.0 and data.vt.max() <= 1.0
+    # every UV triangle has positive area (no collapsed faces in the map)
+    t = data.vt[data.ft]
+    area = 0.5 * np.abs(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]))
+    assert area.min() > 0
