@@ -82,5 +82,6 @@ def test_open_model_has_makehuman_uvs():
     assert data.vt.min() >= 0.0 and data.vt.max() <= 1.0
     # every UV triangle has positive area (no collapsed faces in the map)
     t = data.vt[data.ft]
-    area = 0.5 * np.abs(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]))
+    a, b = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    area = 0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
     assert area.min() > 0
