@@ -73,6 +73,7 @@ __all__ = [
     "write_mano",
     "write_smpl",
     "write_smplh",
+    "write_smpl_uv_obj",
     "write_smplx",
     "write_smplx_kid_template",
 ]
@@ -81,6 +82,7 @@ __all__ = [
 SMPL_VERTS, SMPL_FACES = 6890, 13776
 SMPLX_VERTS, SMPLX_FACES = 10475, 20908
 SMPLX_UVS = 11313
+SMPL_UVS = 7576
 MANO_VERTS, MANO_FACES = 778, 1538
 FLAME_VERTS, FLAME_FACES = 5023, 9976
 HAND_COEFF_ROWS = 1554
@@ -1082,20 +1084,7 @@ def _smplx_arrays(gender: str, seed: int, layout: str):
     d["lmk_bary_coords"] = _bary(rng, 51)
     d["dynamic_lmk_faces_idx"] = rng.choice(allhead, (79, 17)).astype(np.int64)
     d["dynamic_lmk_bary_coords"] = _bary(rng, (79, 17))
-    # UVs: one per vertex plus seam duplicates
-    f = d["f"].astype(np.int64)
-    vt = np.empty((SMPLX_UVS, 2))
-    vt[:SMPLX_VERTS, 0] = np.arctan2(mesh.v[:, 0], mesh.v[:, 2]) / (2 * np.pi) + 0.5
-    vt[:SMPLX_VERTS, 1] = (mesh.v[:, 1] - mesh.v[:, 1].min()) / np.ptp(mesh.v[:, 1])
-    dup = rng.choice(SMPLX_VERTS, SMPLX_UVS - SMPLX_VERTS, replace=False)
-    vt[SMPLX_VERTS:] = np.clip(vt[dup] + rng.normal(0, 0.01, (len(dup), 2)), 0, 1)
-    uv_of = np.full(SMPLX_VERTS, -1)
-    uv_of[dup] = SMPLX_VERTS + np.arange(len(dup))
-    ft = f.copy()
-    swap = (uv_of[f] >= 0) & (rng.random(f.shape) < 0.5)
-    ft[swap] = uv_of[f[swap]]
-    d["vt"] = vt
-    d["ft"] = ft.astype(np.uint32)
+    d["vt"], d["ft"] = _seam_uvs(rng, mesh.v, d["f"], SMPLX_UVS)
     d["joint2num"] = {n: i for i, n in enumerate(_SMPLX_JOINT_NAMES)}
     parts = [
         "global",
@@ -1128,6 +1117,56 @@ def _smplx_arrays(gender: str, seed: int, layout: str):
     ]
     d["part2num"] = {n: i for i, n in enumerate(parts)}
     return mesh, d
+
+
+def _seam_uvs(rng, v: np.ndarray, f: np.ndarray, n_uvs: int) -> tuple[np.ndarray, np.ndarray]:
+    """A UV map with the structure of the official ones: ``vt`` (n_uvs, 2) float64 in [0, 1] -- one
+    UV per vertex (cylindrical about the body axis) plus ``n_uvs - V`` seam duplicates of randomly
+    chosen vertices -- and ``ft`` (F, 3) uint32, where about half the corners at a duplicated vertex
+    use the duplicate (so a vertex has two UVs, as along a real seam)."""
+    n_verts = v.shape[0]
+    f = f.astype(np.int64)
+    vt = np.empty((n_uvs, 2))
+    vt[:n_verts, 0] = np.arctan2(v[:, 0], v[:, 2]) / (2 * np.pi) + 0.5
+    vt[:n_verts, 1] = (v[:, 1] - v[:, 1].min()) / np.ptp(v[:, 1])
+    dup = rng.choice(n_verts, n_uvs - n_verts, replace=False)
+    vt[n_verts:] = np.clip(vt[dup] + rng.normal(0, 0.01, (len(dup), 2)), 0, 1)
+    uv_of = np.full(n_verts, -1)
+    uv_of[dup] = n_verts + np.arange(len(dup))
+    ft = f.copy()
+    swap = (uv_of[f] >= 0) & (rng.random(f.shape) < 0.5)
+    ft[swap] = uv_of[f[swap]]
+    return vt, ft.astype(np.uint32)
+
+
+def write_smpl_uv_obj(dirpath, seed: int = 0, name: str = "smpl_uv.obj", shuffle_faces: bool = False) -> Path:
+    """Fake of the UV map SMPL distributes as a separate Wavefront ``.obj``: the neutral SMPL
+    template (6890 ``v`` lines), 7576 ``vt`` lines (seam duplicates, see :func:`_seam_uvs`) and the
+    13776 SMPL faces as ``f v/vt v/vt v/vt`` (1-based), in the model's face order unless
+    ``shuffle_faces`` (then the faces are permuted and their corners rotated, to test matching).
+
+    The real file's vt count (7576) and face order are taken to be these; its other lines
+    (``vn``, ``s``, comments) are not reproduced."""
+    d = _smpl_arrays("neutral", seed, 10)
+    rng = np.random.default_rng([seed, 7576])
+    f = d["f"].astype(np.int64)
+    vt, ft = _seam_uvs(rng, d["v_template"], f, SMPL_UVS)
+    ft = ft.astype(np.int64)
+    if shuffle_faces:
+        order = rng.permutation(f.shape[0])
+        shift = rng.integers(0, 3, f.shape[0])
+        cols = (shift[:, None] + np.arange(3)[None]) % 3
+        f = np.take_along_axis(f[order], cols, axis=1)
+        ft = np.take_along_axis(ft[order], cols, axis=1)
+    lines = ["# fake SMPL UV map (tests/fakes.py)"]
+    lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in d["v_template"]]
+    lines += [f"vt {u:.6f} {w:.6f}" for u, w in vt]
+    lines += [f"f {a + 1}/{ta + 1} {b + 1}/{tb + 1} {c + 1}/{tc + 1}" for (a, b, c), (ta, tb, tc) in zip(f, ft)]
+    dirpath = Path(dirpath)
+    dirpath.mkdir(parents=True, exist_ok=True)
+    path = dirpath / name
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
 
 
 def write_smplx(

@@ -74,3 +74,27 @@ def test_demo_with_a_users_model_pose_file_and_ply(tmp_path, fake_models):
 def test_demo_reports_bad_arguments(tmp_path, capsys):
     assert main(["demo", "--poses", "moonwalk", "--out", str(tmp_path), "--no-render"]) == 2
     assert "unknown ['moonwalk']" in capsys.readouterr().err
+
+
+def test_demo_textures_the_open_model(tmp_path, capsys):
+    """Default: the UV grid on the bodies and with the OBJ; --texture FILE draws that image; 'none' none."""
+    red = tmp_path / "red.png"
+    PIL.fromarray(np.tile(np.array([200, 20, 20], np.uint8), (32, 32, 1))).save(red)
+    out = tmp_path / "red"
+    assert _render_or_skip(lambda: main(["demo", "--out", str(out), "--texture", str(red), "--poses", "t-pose"])) == 0
+    assert f"texture: {out / 'body_texture.png'}" in capsys.readouterr().out
+    image = np.asarray(PIL.open(out / "body.png").convert("RGB")).astype(int)
+    body = _foreground(out / "body.png")
+    assert (image[body, 0] > image[body, 2] + 40).mean() > 0.8  # the body is red: the texture is drawn
+    text = (out / "body.obj").read_text()
+    assert text.startswith("# written by smplcore\nmtllib body.mtl\n") and "\nvt " in text
+    written = np.asarray(PIL.open(out / "body_texture.png").convert("RGB"))
+    np.testing.assert_array_equal(written, np.asarray(PIL.open(red)))
+    # the default is the UV grid: many colours on the body
+    grid = tmp_path / "grid"
+    assert main(["demo", "--out", str(grid), "--poses", "t-pose"]) == 0
+    pixels = np.asarray(PIL.open(grid / "body.png").convert("RGB"))[_foreground(grid / "body.png")]
+    assert len(np.unique(pixels // 32, axis=0)) > 20
+    plain = tmp_path / "plain"
+    assert main(["demo", "--out", str(plain), "--texture", "none", "--no-render"]) == 0
+    assert not (plain / "body_texture.png").exists() and "\nvt " in (plain / "body.obj").read_text()

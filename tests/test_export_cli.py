@@ -135,8 +135,30 @@ def test_default_is_the_open_model(tmp_path, capsys, smplh_motion):
         assert main(["export", str(path), "-o", str(out)]) == 0
         assert out.stat().st_size > 0
     printed = capsys.readouterr().out
-    assert f"24 joints, {model.skinning_weights.shape[0]} vertices" in printed
+    # the open model has a UV map: the glb's mesh is split along its seams (more vertices than the model)
+    from smplcore.export.uv import model_uv, split_seams
+
+    written = split_seams(model.faces, *model_uv(model)).num_vertices
+    assert written > model.skinning_weights.shape[0]
+    assert f"24 joints, {written} vertices" in printed
     assert validate(tmp_path / "o.glb")["issues"]["numErrors"] == 0
+    assert "\nvt " in (tmp_path / "o.obj").read_text()
+
+
+def test_texture_option(tmp_path, capsys, smplh_motion, fake_models):
+    open_model()
+    path, _ = smplh_motion
+    assert main(["export", str(path), "-o", str(tmp_path / "t.glb"), "--texture", "uv-grid", "--frames", "0:3"]) == 0
+    result = validate(tmp_path / "t.glb")
+    assert result["issues"]["numErrors"] == 0 and result["info"]["hasTextures"]
+    assert main(["export", str(path), "-o", str(tmp_path / "t.obj"), "--texture", "uv-grid"]) == 0
+    assert (tmp_path / "t_texture.png").is_file() and "map_Kd t_texture.png" in (tmp_path / "t.mtl").read_text()
+    capsys.readouterr()
+    assert main(["export", str(path), "-o", str(tmp_path / "t.bvh"), "--texture", "uv-grid"]) == 2
+    assert "--texture: textures are written to .obj and .glb" in capsys.readouterr().err
+    smpl = str(fake_models["smpl_neutral_npz"])
+    assert main(["export", str(path), "-o", str(tmp_path / "s.obj"), "--model-path", smpl, "--texture", "uv-grid"]) == 2
+    assert "--texture: the smpl model has no UV map" in capsys.readouterr().err
 
 
 def test_errors_exit_with_status_2(tmp_path, capsys, smplh_motion):

@@ -65,3 +65,22 @@ def test_beta_zero_is_height(model):
         v = model(betas=betas).vertices[0]
         heights.append(v[:, 1].max() - v[:, 1].min())
     assert heights[0] < heights[1] < heights[2]
+
+
+def test_open_model_files_per_gender():
+    """Neutral, male and female files (as SMPL ships three): same mesh, skeleton, skinning and UV map."""
+    from smplcore.io import load_model
+    from smplcore.io.open_model import open_model_path
+
+    models = {g: load_model(open_model_path(g)) for g in ("neutral", "male", "female")}
+    for gender, data in models.items():
+        assert data.model_type == "open" and data.gender == gender and data.has_uv
+        np.testing.assert_array_equal(data.faces, models["neutral"].faces)
+        np.testing.assert_array_equal(data.ft, models["neutral"].ft)
+        np.testing.assert_array_equal(data.vt, models["neutral"].vt)
+        np.testing.assert_array_equal(data.weights, models["neutral"].weights)
+        np.testing.assert_array_equal(data.parents, models["neutral"].parents)
+    assert open_model_path("F") == open_model_path("female") and open_model_path(None) == open_model_path()
+    assert open_model_path().name == "open_model.npz"
+    with pytest.raises(ValueError, match=r"gender: the open model comes as \['female', 'male', 'neutral'\]"):
+        open_model_path("kid")

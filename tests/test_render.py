@@ -198,3 +198,33 @@ def test_save_png_checks(tmp_path):
         save_png(np.zeros((4, 4, 3), dtype=np.uint8), tmp_path / "a.jpg")
     with pytest.raises(ValueError, match=r"path: expected a file name ending in \.png"):
         render_to_png(TRI_V, TRI_F, tmp_path / "a.jpg")
+
+
+def test_texture_through_the_uv_map_is_drawn_the_right_way_up(gl):
+    """A slab whose UVs are its front-view x, y: each quadrant of the texture lands on that quadrant of the
+    image (OBJ convention, v up: the texture's first row is the top of the slab)."""
+    slab = _slab()
+    verts = np.asarray(slab.vertices)
+    vt = np.c_[(verts[:, 0] + 0.3) / 0.6, verts[:, 1] / 1.7]
+    ft = np.asarray(slab.faces)
+    tex = np.zeros((64, 64, 3), np.uint8)
+    tex[:32, :32] = (220, 30, 30)  # top left: red
+    tex[:32, 32:] = (30, 200, 30)  # top right: green
+    tex[32:, :32] = (30, 30, 220)  # bottom left: blue
+    tex[32:, 32:] = (230, 230, 30)  # bottom right: yellow
+    img = render_mesh(verts, ft, width=SIZE, height=SIZE, uv=(vt, ft), texture=tex).astype(int)
+    mask = _foreground(img)
+    rows, cols = np.nonzero(mask)
+    r0, r1, c0, c1 = rows.min(), rows.max(), cols.min(), cols.max()
+    quarter = lambda fy, fx: img[int(r0 + fy * (r1 - r0)), int(c0 + fx * (c1 - c0))]  # noqa: E731
+    red, green, blue, yellow = quarter(0.25, 0.25), quarter(0.25, 0.75), quarter(0.75, 0.25), quarter(0.75, 0.75)
+    assert red[0] > red[1] + 40 and red[0] > red[2] + 40, red
+    assert green[1] > green[0] + 40 and green[1] > green[2] + 40, green
+    assert blue[2] > blue[0] + 40 and blue[2] > blue[1] + 40, blue
+    assert yellow[0] > yellow[2] + 40 and yellow[1] > yellow[2] + 40, yellow
+
+
+def test_texture_needs_a_uv_map():
+    slab = _slab()
+    with pytest.raises(ValueError, match=r"uv: a texture needs the mesh's UV map"):
+        render_mesh(slab.vertices, slab.faces, texture="uv-grid")

@@ -5,6 +5,16 @@ import fs from "fs";
 import path from "path";
 import { pathToFileURL } from "url";
 
+// Node has no DOM: GLTFLoader decodes embedded images with createImageBitmap, stubbed here to read the PNG
+// header, so that a textured file loads and its texture's size shows that three.js got the image bytes.
+globalThis.self = globalThis;
+globalThis.createImageBitmap = async (blob) => {
+  const bytes = new Uint8Array(await blob.arrayBuffer());
+  const view = new DataView(bytes.buffer);
+  const png = bytes[1] === 0x50 && bytes[2] === 0x4e && bytes[3] === 0x47;
+  return { width: png ? view.getUint32(16) : 0, height: png ? view.getUint32(20) : 0, png, close() {} };
+};
+
 const [modules, file, fpsArg, framesArg] = process.argv.slice(2);
 const url = (p) => pathToFileURL(path.join(modules, p)).href;
 const THREE = await import(url("three/build/three.module.js"));
@@ -19,7 +29,12 @@ const clip = gltf.animations[0];
 const mixer = new THREE.AnimationMixer(gltf.scene);
 mixer.clipAction(clip).play();
 const out = { revision: THREE.REVISION, clip: clip.name, duration: clip.duration, tracks: clip.tracks.length,
-              vertices: {}, bones: {} };
+              vertices: {}, bones: {}, uv: null, map: null };
+const uvAttr = mesh.geometry.attributes.uv;
+if (uvAttr) out.uv = Array.from({ length: uvAttr.count }, (_, i) => [uvAttr.getX(i), uvAttr.getY(i)]);
+const map = mesh.material.map;
+if (map) out.map = { width: map.image.width, height: map.image.height, png: map.image.png, flipY: map.flipY,
+                     channel: map.channel };
 const v = new THREE.Vector3();
 for (const k of framesArg.split(",").map(Number)) {
   mixer.setTime(k / Number(fpsArg));

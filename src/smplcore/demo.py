@@ -88,6 +88,7 @@ class DemoResult:
     vertices: np.ndarray
     joints: np.ndarray
     faces: np.ndarray
+    texture_path: Path | None = None
 
 
 def run_demo(
@@ -103,6 +104,7 @@ def run_demo(
     render: bool = True,
     width: int = 1200,
     height: int = 500,
+    texture: str | Path | None = "uv-grid",
 ) -> DemoResult:
     """Pose the model and write ``body.{obj,ply}`` (first pose) and ``body.png`` (all poses).
 
@@ -115,8 +117,12 @@ def run_demo(
     model_path, model_type, gender : a user's model (default: the packaged open model).
     mesh_format : ``obj`` or ``ply``.
     render : write the PNG (needs pyrender and an offscreen OpenGL: EGL or OSMesa).
+    texture : for a model with a UV map (the open model, SMPL-X): an image file drawn on the body, in the
+        rendering and with the OBJ (``body.mtl`` + ``body_texture.png``); ``"uv-grid"`` (default) a generated grid
+        that shows how the map lies on the body; None for an untextured body.
     """
     from smplcore.export.mesh import save_mesh
+    from smplcore.export.uv import model_uv, resolve_texture
     from smplcore.numpy_model import BodyModel
 
     if mesh_format not in ("obj", "ply"):
@@ -144,7 +150,12 @@ def run_demo(
     out = model(**params)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    mesh_path = save_mesh(out_dir / f"body.{mesh_format}", out.vertices[0], model.faces)
+    uv = model_uv(model)
+    image = resolve_texture(texture) if uv is not None else None
+    textured = {"uv": uv, "texture": image} if image is not None else {}
+    obj_uv = {"uv": uv, "texture": image} if mesh_format == "obj" and uv is not None else {}
+    mesh_path = save_mesh(out_dir / f"body.{mesh_format}", out.vertices[0], model.faces, **obj_uv)
+    texture_path = out_dir / "body_texture.png" if obj_uv and image is not None else None
     image_path = None
     if render:
         from smplcore.render import render_to_png
@@ -156,9 +167,15 @@ def run_demo(
             width=width,
             height=height,
             camera="three_quarter",
+            **textured,
         )
     return DemoResult(
-        Path(mesh_path), None if image_path is None else Path(image_path), out.vertices, out.joints, model.faces
+        Path(mesh_path),
+        None if image_path is None else Path(image_path),
+        out.vertices,
+        out.joints,
+        model.faces,
+        texture_path,
     )
 
 

@@ -6,6 +6,7 @@ Examples::
     smplcore export walk.npz -o walk.glb                  # AMASS-style motion on the open model
     smplcore export walk.npz -o walk.bvh --bvh-scale 100  # BVH in centimetres
     smplcore export walk.npz -o frame10.obj --frame 10 --colors weights
+    smplcore export walk.npz -o walk.glb --texture skin.png    # UVs (open model, SMPL-X) + a texture
     smplcore export walk.npz -o walk.glb --model-path models/ --model-type smplh
     smplcore export params.npz -o body.glb                # one parameter set (betas, body_pose, ...)
 """
@@ -72,6 +73,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         choices=("none", "weights"),
         default="none",
         help=".obj/.ply/.glb: per-vertex colours from the skinning weights (default: none)",
+    )
+    parser.add_argument(
+        "--texture",
+        default=None,
+        metavar="FILE",
+        help=".obj/.glb: image drawn through the model's UV map (the open model, SMPL-X; the UVs are written "
+        "whenever the model has them), or 'uv-grid' for a generated grid that shows the mapping",
     )
     parser.add_argument(
         "--morph-targets",
@@ -188,6 +196,8 @@ def run(args: argparse.Namespace) -> int:
     suffix = out.suffix.lower()
     if suffix not in FORMATS:
         raise ValueError(f"-o/--output: unsupported suffix {out.suffix!r}; expected one of {', '.join(FORMATS)}")
+    if args.texture is not None and suffix not in (".obj", ".glb"):
+        raise ValueError(f"--texture: textures are written to .obj and .glb files, not {out.suffix!r}")
     source = load_input(args.input)
     frames = _frame_slice(args.frames)
     if frames is not None:
@@ -219,6 +229,7 @@ def run(args: argparse.Namespace) -> int:
                         morph_targets=args.morph_targets,
                         influences=args.influences,
                         vertex_colors=colors,
+                        texture=args.texture,
                         progress=update,
                     )
                 else:
@@ -248,6 +259,7 @@ def _count(params: dict[str, Any]) -> int:
 def _write_mesh(
     args: argparse.Namespace, model: Any, source: Any, out: Path, save_mesh: Any, weight_colors: Any
 ) -> str:
+    from smplcore.export.uv import model_uv
     from smplcore.motion import Motion
 
     if isinstance(source, Motion):
@@ -277,7 +289,11 @@ def _write_mesh(
         frame[name] = value
     output = model(**frame)
     colors = weight_colors(model.skinning_weights) if args.colors == "weights" else None
-    path = save_mesh(out, output.vertices[0], model.faces, vertex_colors=colors)
+    uv = model_uv(model) if out.suffix.lower() == ".obj" else None
+    if args.texture is not None and uv is None:
+        raise ValueError(f"--texture: the {model.model_type} model has no UV map")
+    textured = {"uv": uv, "texture": args.texture} if uv is not None else {}
+    path = save_mesh(out, output.vertices[0], model.faces, vertex_colors=colors, **textured)
     return (
         f"wrote {path} ({suffix_name(path)}, {path.stat().st_size / 1e3:.1f} kB): frame {k} of {total}, "
         f"{output.vertices.shape[1]} vertices"

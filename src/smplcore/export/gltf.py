@@ -9,6 +9,9 @@ The file holds one scene with
 * a skinned mesh (node ``body``): the shaped rest mesh with smooth normals, ``JOINTS_0``/``WEIGHTS_0``
   holding the top 4 skinning weights of each vertex, renormalised (``influences=8`` adds a second set;
   Blender reads it, three.js only the first), and inverse bind matrices ``translate(-rest joint)``;
+  when the model has a UV map (the open model, SMPL-X), ``TEXCOORD_0`` too, with the mesh split along
+  the UV seams (glTF has one UV per vertex: a seam vertex becomes several copies that share position,
+  normal, skin weights and morph offsets), and optionally an embedded base-colour texture (PNG);
 * one animation: a rotation channel (unit quaternions x, y, z, w, sign-continuous, linear = slerp) for
   every joint and a translation channel for the root (rest root joint + ``transl``), keyed at the
   sequence's frame rate (times ``k / fps``);
@@ -41,62 +44,21 @@ from smplcore.export.animation import (
     top_k_weights,
     truncation_error,
 )
+from smplcore.export.gltf_buffer import (
+    ARRAY_BUFFER,
+    ELEMENT_ARRAY_BUFFER,
+    FLOAT,
+    UBYTE,
+    UINT,
+    USHORT,
+    BufferBuilder,
+)
+from smplcore.export.uv import TextureInput, encode_png, model_uv, resolve_texture, split_seams
 
 __all__ = ["save_glb"]
 
-_FLOAT, _UBYTE, _USHORT, _UINT = 5126, 5121, 5123, 5125
-_ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
-_TYPES = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4", 16: "MAT4"}
-_DTYPES = {_FLOAT: np.float32, _UBYTE: np.uint8, _USHORT: np.uint16, _UINT: np.uint32}
-
-
-class _Builder:
-    """Accumulates one binary buffer and the buffer views and accessors pointing into it."""
-
-    def __init__(self, gltf: Any) -> None:
-        self.gltf = gltf
-        self.blob = bytearray()
-
-    def accessor(
-        self,
-        array: np.ndarray,
-        component: int,
-        *,
-        target: int | None = None,
-        bounds: bool = False,
-        normalized: bool = False,
-        name: str | None = None,
-    ) -> int:
-        import pygltflib
-
-        arr = np.ascontiguousarray(array, dtype=_DTYPES[component])
-        count = arr.shape[0]
-        width = int(np.prod(arr.shape[1:])) if arr.ndim > 1 else 1
-        while len(self.blob) % 4:
-            self.blob.append(0)
-        offset = len(self.blob)
-        data = arr.tobytes()
-        self.blob.extend(data)
-        self.gltf.bufferViews.append(
-            pygltflib.BufferView(buffer=0, byteOffset=offset, byteLength=len(data), target=target)
-        )
-        flat = arr.reshape(count, width)
-        kwargs: dict[str, Any] = {}
-        if bounds:
-            kind = float if component == _FLOAT else int
-            kwargs = {"min": [kind(v) for v in flat.min(axis=0)], "max": [kind(v) for v in flat.max(axis=0)]}
-        self.gltf.accessors.append(
-            pygltflib.Accessor(
-                bufferView=len(self.gltf.bufferViews) - 1,
-                componentType=component,
-                count=count,
-                type=_TYPES[width],
-                normalized=normalized or None,
-                name=name,
-                **kwargs,
-            )
-        )
-        return len(self.gltf.accessors) - 1
+_ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER
+_FLOAT, _UBYTE, _USHORT, _UINT = FLOAT, UBYTE, USHORT, UINT
 
 
 def _vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -146,6 +108,8 @@ def save_glb(
     morph_targets: bool = False,
     influences: int = 4,
     vertex_colors: Any = None,
+    uv: bool | None = None,
+    texture: TextureInput | None = None,
     name: str | None = None,
     progress: Progress | None = None,
 ) -> ExportReport:
@@ -164,6 +128,12 @@ def save_glb(
         (adds ``JOINTS_1``/``WEIGHTS_1``).
     vertex_colors : optional (V, 3|4) colours (floats in [0, 1] or uint8), written as ``COLOR_0``, e.g.
         :func:`smplcore.export.weight_colors` of the skinning weights.
+    uv : write the model's UV map as ``TEXCOORD_0`` (default: whenever the model has one, e.g. the open
+        model and SMPL-X). glTF keeps one UV per vertex, so the mesh is split along the UV seams: the file
+        then holds more vertices than the model, each a copy of a model vertex with its position, normal,
+        skin weights, colour and morph-target offsets.
+    texture : optional base-colour texture for the UV map: an image file, an (H, W, 3|4) uint8 array or
+        ``"uv-grid"`` (:func:`smplcore.export.uv.uv_grid_texture`); embedded as PNG.
     name : name of the animation (default: the input file's stem, or ``"motion"``).
     progress : called with numbers of frames processed (two passes: preparing, measuring the skin error;
         a third for models with pose correctives).
@@ -190,6 +160,13 @@ def save_glb(
         raise ValueError(f"path: expected a .glb file, got {str(path)!r}")
     notes = list(anim.notes)
     num_joints, num_verts = anim.num_joints, anim.rest_vertices.shape[0]
+    uv_map = model_uv(model)
+    if uv and uv_map is None:
+        raise ValueError(f"uv: the {anim.model_type} model has no UV map (vt/ft)")
+    if texture is not None and (uv_map is None or uv is False):
+        raise ValueError("texture: a texture needs the model's UV map; the model has none or uv=False was given")
+    image = resolve_texture(texture)
+    split = split_seams(anim.faces, *uv_map) if uv_map is not None and uv is not False else None
 
     joints_idx, values, _ = top_k_weights(anim.weights, influences)
     err = truncation_error(anim, joints_idx, values, progress=progress)
@@ -207,7 +184,7 @@ def save_glb(
 
     gltf = pygltflib.GLTF2()
     gltf.asset = pygltflib.Asset(version="2.0", generator=f"smplcore {_version()} (pygltflib)")
-    build = _Builder(gltf)
+    build = BufferBuilder(gltf)
 
     # Skeleton: node j is joint j; the mesh node comes after the joints.
     offsets = anim.offsets
@@ -221,16 +198,24 @@ def save_glb(
         )
     mesh_node = num_joints
 
-    # Mesh.
-    verts = anim.rest_vertices.astype(np.float32)
-    faces = np.asarray(anim.faces)
+    # Mesh (split along the UV seams when there is a UV map: `ids` picks each written vertex's model vertex).
+    ids = np.arange(num_verts) if split is None else split.vertex_ids
+    faces = np.asarray(anim.faces) if split is None else split.faces
+    verts = anim.rest_vertices[ids].astype(np.float32)
     attributes: dict[str, int] = {
         "POSITION": build.accessor(verts, _FLOAT, target=_ARRAY_BUFFER, bounds=True, name="positions"),
         "NORMAL": build.accessor(
-            _vertex_normals(anim.rest_vertices, faces), _FLOAT, target=_ARRAY_BUFFER, name="normals"
+            _vertex_normals(anim.rest_vertices, np.asarray(anim.faces))[ids],
+            _FLOAT,
+            target=_ARRAY_BUFFER,
+            name="normals",
         ),
     }
+    if split is not None:  # glTF's UV origin is the top-left corner: v flipped
+        texcoord = np.c_[split.uv[:, 0], 1.0 - split.uv[:, 1]]
+        attributes["TEXCOORD_0"] = build.accessor(texcoord, _FLOAT, target=_ARRAY_BUFFER, name="texcoords")
     joint_type = _UBYTE if num_joints <= 256 else _USHORT
+    joints_idx, values = joints_idx[ids], values[ids]
     w32 = _float32_weights(values)
     for s in range(influences // 4):
         cols = slice(4 * s, 4 * s + 4)
@@ -242,13 +227,13 @@ def save_glb(
         from smplcore.export.mesh import _check_vertex_colors
 
         attributes["COLOR_0"] = build.accessor(
-            _check_vertex_colors(vertex_colors, num_verts),
+            _check_vertex_colors(vertex_colors, num_verts)[ids],
             _UBYTE,
             target=_ARRAY_BUFFER,
             normalized=True,
             name="colors",
         )
-    index_type = _USHORT if num_verts < 65535 else _UINT
+    index_type = _USHORT if len(ids) < 65535 else _UINT
     indices = build.accessor(faces.reshape(-1), index_type, target=_ELEMENT_ARRAY_BUFFER, name="indices")
 
     target_names: list[str] = []
@@ -262,7 +247,7 @@ def save_glb(
             targets.append(
                 {
                     "POSITION": build.accessor(
-                        shape_dirs[:, :, k], _FLOAT, target=_ARRAY_BUFFER, bounds=True, name=f"beta_{k}"
+                        shape_dirs[ids, :, k], _FLOAT, target=_ARRAY_BUFFER, bounds=True, name=f"beta_{k}"
                     )
                 }
             )
@@ -274,7 +259,7 @@ def save_glb(
                 targets.append(
                     {
                         "POSITION": build.accessor(
-                            expr_dirs[:, :, k], _FLOAT, target=_ARRAY_BUFFER, bounds=True, name=f"expr_{k}"
+                            expr_dirs[ids, :, k], _FLOAT, target=_ARRAY_BUFFER, bounds=True, name=f"expr_{k}"
                         )
                     }
                 )
@@ -304,11 +289,22 @@ def save_glb(
             extras={"targetNames": target_names} if targets else {},
         )
     )
+    base_texture = None
+    if image is not None:
+        gltf.images.append(
+            pygltflib.Image(bufferView=build.raw(encode_png(image)), mimeType="image/png", name="base_color")
+        )
+        gltf.samplers.append(pygltflib.Sampler(magFilter=9729, minFilter=9987, wrapS=33071, wrapT=33071))
+        gltf.textures.append(pygltflib.Texture(sampler=0, source=0, name="base_color"))
+        base_texture = pygltflib.TextureInfo(index=0, texCoord=0)
     gltf.materials.append(
         pygltflib.Material(
             name="body",
             pbrMetallicRoughness=pygltflib.PbrMetallicRoughness(
-                baseColorFactor=[0.8, 0.72, 0.66, 1.0], metallicFactor=0.0, roughnessFactor=0.7
+                baseColorFactor=[1.0, 1.0, 1.0, 1.0] if image is not None else [0.8, 0.72, 0.66, 1.0],
+                baseColorTexture=base_texture,
+                metallicFactor=0.0,
+                roughnessFactor=0.7,
             ),
         )
     )
@@ -359,7 +355,7 @@ def save_glb(
         num_frames=frames,
         fps=anim.fps,
         num_joints=num_joints,
-        num_vertices=num_verts,
+        num_vertices=len(ids),
         influences=influences,
         max_model_influences=int((anim.weights > 0).sum(axis=1).max()),
         top4_max_error=err["max"],
@@ -382,6 +378,8 @@ def save_glb(
             "skin_truncation_mean_error_m": err["mean"],
             "pose_correctives_exported": False,
             "pose_corrective_max_m": corrective,
+            "uv_seam_split": split is not None,
+            "model_vertices": num_verts,
         }
     }
 

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from smplcore.errors import ShapeError as _ShapeError
+from smplcore.export.uv import TextureInput, check_uv_map, encode_png, resolve_texture
 from smplcore.mesh_args import as_array, check_faces, check_points
 
 __all__ = ["SUPPORTED_SUFFIXES", "save_mesh", "weight_colors"]
@@ -61,6 +62,8 @@ def save_mesh(
     faces: Any,
     *,
     vertex_colors: Any = None,
+    uv: tuple[Any, Any] | None = None,
+    texture: TextureInput | None = None,
 ) -> Path:
     """Write one mesh to ``path`` as Wavefront OBJ or binary PLY, chosen from the suffix.
 
@@ -70,13 +73,20 @@ def save_mesh(
         faces: (F, 3) integer vertex indices in [0, V).
         vertex_colors: optional (V, 3) or (V, 4) colours, floats in [0, 1] or uint8. PLY keeps
             them exactly (as uint8 RGBA); OBJ writes them as the common ``v x y z r g b`` extension.
+        uv: optional UV map ``(vt, ft)``: ``vt`` (T, 2) texture coordinates (v up), ``ft`` (F, 3)
+            indices into ``vt`` per face corner (a model's, e.g. :func:`smplcore.export.uv.model_uv`).
+            OBJ only: written as ``vt`` lines and ``f v/vt`` faces.
+        texture: optional image for the UV map (needs ``uv``, OBJ only): an image file, an
+            (H, W, 3|4) uint8 array or ``"uv-grid"`` (:func:`~smplcore.export.uv.uv_grid_texture`).
+            Written as ``<stem>_texture.png`` beside the OBJ, with a ``<stem>.mtl`` whose ``map_Kd`` names it.
 
     Returns:
         The path written, as a :class:`pathlib.Path`.
 
     Vertex and face order are kept (trimesh with ``process=False``): reloading with
     ``trimesh.load(path, process=False)`` gives the same arrays. Every vertex is written, but
-    trimesh's OBJ reader drops vertices no face uses unless it is given ``maintain_order=True``.
+    trimesh's OBJ reader drops vertices no face uses unless it is given ``maintain_order=True``;
+    with a UV map it also splits vertices along the seams unless it is given ``maintain_order=True``.
     """
     out = Path(path)
     suffix = out.suffix.lower()
@@ -87,6 +97,18 @@ def save_mesh(
     verts = _check_vertices(vertices)
     tris = check_faces(faces, verts.shape[0])
     colors = None if vertex_colors is None else _check_vertex_colors(vertex_colors, verts.shape[0])
+    if texture is not None and uv is None:
+        raise ValueError("texture: a texture needs a UV map; pass uv=(vt, ft), e.g. smplcore.export.uv.model_uv(model)")
+    if uv is not None:
+        if suffix != ".obj":
+            raise ValueError(f"uv: UV maps are written to .obj files only, got {str(out)!r}")
+        if not (isinstance(uv, (tuple, list)) and len(uv) == 2):
+            raise ValueError("uv: expected a pair (vt, ft)")
+        vt, ft = check_uv_map(uv[0], uv[1], tris)
+        image = resolve_texture(texture)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        _write_textured_obj(out, verts, tris, colors, vt, ft, image)
+        return out
 
     try:
         import trimesh
@@ -108,6 +130,40 @@ def save_mesh(
         data = trimesh.exchange.ply.export_ply(mesh, encoding="binary", vertex_normal=False, include_attributes=False)
         out.write_bytes(data)
     return out
+
+
+def _write_textured_obj(
+    out: Path,
+    verts: np.ndarray,
+    tris: np.ndarray,
+    colors: np.ndarray | None,
+    vt: np.ndarray,
+    ft: np.ndarray,
+    image: np.ndarray | None,
+) -> None:
+    """OBJ with ``vt`` lines and ``f v/vt`` faces (1-based), plus ``.mtl`` and ``.png`` for a texture."""
+    lines = ["# written by smplcore"]
+    if image is not None:
+        material = out.stem
+        png = out.with_name(f"{out.stem}_texture.png")
+        png.write_bytes(encode_png(image))
+        out.with_suffix(".mtl").write_text(
+            f"# written by smplcore\nnewmtl {material}\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nd 1\nillum 1\n"
+            f"map_Kd {png.name}\n",
+            encoding="utf-8",
+        )
+        lines.append(f"mtllib {out.with_suffix('.mtl').name}")
+    if colors is None:
+        lines.extend(f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in verts)
+    else:
+        rgb = colors[:, :3] / 255.0
+        lines.extend(f"v {x:.9g} {y:.9g} {z:.9g} {r:.6g} {g:.6g} {b:.6g}" for (x, y, z), (r, g, b) in zip(verts, rgb))
+    lines.extend(f"vt {u:.9g} {v:.9g}" for u, v in vt)
+    if image is not None:
+        lines.append(f"usemtl {out.stem}")
+    f1, t1 = tris + 1, ft + 1
+    lines.extend(f"f {a}/{ta} {b}/{tb} {c}/{tc}" for (a, b, c), (ta, tb, tc) in zip(f1.tolist(), t1.tolist()))
+    out.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
 def _palette(count: int) -> np.ndarray:

@@ -44,6 +44,8 @@ class ModelData:
     joint_names : names of the J joints, or None.
     extra_joint_names, extra_joint_vertex_ids : named vertices used as extra joints (e.g. nose,
         toes, fingertips) when the file brings its own (the open model), else empty.
+    vt : (T, 2) texture coordinates (OBJ convention, v up; T >= V because seams split UVs), or None.
+    ft : (F, 3) int64 indices into ``vt``, corner for corner with ``faces``, or None.
     source : the file the data was read from (for messages), or a description.
     faces_dtype : the integer dtype of the file's faces (``faces`` itself is always int64).
     """
@@ -69,6 +71,8 @@ class ModelData:
     joint_names: tuple[str, ...] | None = None
     extra_joint_names: tuple[str, ...] = ()
     extra_joint_vertex_ids: tuple[int, ...] = ()
+    vt: np.ndarray | None = None
+    ft: np.ndarray | None = None
     source: str = field(default="<memory>")
     faces_dtype: str = "int64"
 
@@ -95,6 +99,11 @@ class ModelData:
     @property
     def num_expression_coeffs(self) -> int:
         return 0 if self.exprdirs is None else int(self.exprdirs.shape[-1])
+
+    @property
+    def has_uv(self) -> bool:
+        """True when the model carries a UV map (``vt`` and ``ft``)."""
+        return self.vt is not None and self.ft is not None
 
     def replace(self, **changes) -> ModelData:
         """A copy with some fields replaced (the data is frozen)."""

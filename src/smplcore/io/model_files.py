@@ -73,6 +73,8 @@ _OURS_OPTIONAL = {
     "joint_names",
     "extra_joint_names",
     "extra_joint_vertex_ids",
+    "vt",
+    "ft",
 }
 _OURS_REQUIRED = {
     "format",
@@ -137,8 +139,18 @@ def load_model(path: str | Path, *, model_type: str | None = None, gender: str |
     path = Path(path)
     raw = read_container(path)
     if "format" in raw:
-        return _from_smplcore_npz(path, raw, model_type)
-    return _from_official(path, raw, model_type, gender)
+        data = _from_smplcore_npz(path, raw, model_type)
+    else:
+        data = _from_official(path, raw, model_type, gender)
+    return _with_file_uv(data, path, raw)
+
+
+def _with_file_uv(data: ModelData, path: Path, raw: dict[str, Any]) -> ModelData:
+    """The UV map (``vt``, ``ft``) the file carries, checked against its faces (see :mod:`smplcore.io.uv`)."""
+    from smplcore.io.uv import uv_from_file_arrays
+
+    uv = uv_from_file_arrays(path, raw, data.faces.shape[0])
+    return data.replace(**uv) if uv else data
 
 
 def save_npz(data: ModelData, path: str | Path) -> Path:
@@ -164,6 +176,8 @@ def save_npz(data: ModelData, path: str | Path) -> Path:
         "lmk_bary_coords",
         "dynamic_lmk_faces_idx",
         "dynamic_lmk_bary_coords",
+        "vt",
+        "ft",
     ):
         value = getattr(data, name)
         if value is not None:

@@ -222,6 +222,8 @@ def render_mesh(
     joint_radius: float | None = None,
     alpha: float | None = None,
     smooth: bool = True,
+    uv: tuple[Any, Any] | None = None,
+    texture: Any = None,
 ) -> np.ndarray:
     """Render a mesh, or a batch of meshes side by side, to an (height, width, 3) uint8 image.
 
@@ -244,6 +246,11 @@ def render_mesh(
             joints inside the body show through. An alpha in ``color`` is used when this is None
             and no joints are given.
         smooth: smooth shading from vertex normals (True) or flat shading per face (False).
+        uv: optional UV map ``(vt, ft)`` (T, 2) and (F, 3) of the mesh (a model's:
+            :func:`smplcore.export.uv.model_uv`), needed for ``texture``.
+        texture: optional base-colour image drawn on every mesh through ``uv`` (``color`` is then not
+            used): an image file, an (H, W, 3|4) uint8 array or ``"uv-grid"``
+            (:func:`smplcore.export.uv.uv_grid_texture`).
 
     Returns:
         np.ndarray of shape (height, width, 3), dtype uint8, first row at the top.
@@ -293,6 +300,15 @@ def render_mesh(
     elif jts is not None:
         colors[:, 3] = 0.5
 
+    split = image = None
+    if texture is not None:
+        from smplcore.export.uv import resolve_texture, split_seams
+
+        if uv is None or not (isinstance(uv, (tuple, list)) and len(uv) == 2):
+            raise ValueError("uv: a texture needs the mesh's UV map, uv=(vt, ft) (e.g. smplcore.export.uv.model_uv)")
+        split = split_seams(tris, uv[0], uv[1])
+        image = resolve_texture(texture)
+
     placed, placed_joints = _layout(verts, jts, CAMERAS[camera])
 
     radius = 0.0
@@ -320,6 +336,11 @@ def render_mesh(
 
     scene = pyrender.Scene(bg_color=np.append(bg[:3], 1.0), ambient_light=np.full(3, _AMBIENT))
     for i in range(n):
+        if split is not None:
+            from smplcore.render.texture import textured_mesh
+
+            scene.add(textured_mesh(pyrender, trimesh, placed[i], tris, split, image, colors[i, 3], smooth))
+            continue
         rgba = colors[i]
         blend = rgba[3] < 1.0
         material = pyrender.MetallicRoughnessMaterial(
