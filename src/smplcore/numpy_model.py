@@ -51,6 +51,8 @@ class BodyModel:
         :mod:`smplcore.engine.reference`); see :mod:`smplcore.engine.kernels`.
     check_finite : refuse NaN / inf inputs with an error naming the argument (default True).
     check_rotations : with ``pose2rot=False``, refuse matrices that are not rotations (default True).
+    uv_path : a UV map ``.obj`` for the model's mesh (as SMPL distributes it); files that carry ``vt``/``ft``
+        (SMPL-X, the open model) need none.
 
     Examples
     --------
@@ -73,10 +75,15 @@ class BodyModel:
         kernel: str = "auto",
         check_finite: bool = True,
         check_rotations: bool = True,
+        uv_path: str | Path | None = None,
         **options: Any,
     ) -> None:
         if data is None:
             data = read_model(model_path, model_type, gender=gender, ext=ext, is_rhand=is_rhand)
+        if uv_path is not None:  # SMPL distributes its UV map as a separate .obj
+            from smplcore.io.uv import attach_uv
+
+            data = attach_uv(data, uv_path)
         known = set(SETUP_OPTIONS)
         for name in sorted(set(options) - known):
             warn_once("BodyModel", f"BodyModel: ignoring unknown keyword argument {name!r}", key=name)
@@ -93,6 +100,12 @@ class BodyModel:
     def arrays(self) -> Any:
         """The engine's arrays (:class:`smplcore.engine.BodyArrays`) in this model's dtype."""
         return self.source.fast_arrays()
+
+    @property
+    def uv(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(vt, ft)``: (T, 2) UV coordinates and (F, 3) UV faces, or None when the model has no UV map."""
+        d = self.setup.data
+        return (d.vt, d.ft) if d.has_uv else None
 
     @property
     def model_type(self) -> str:

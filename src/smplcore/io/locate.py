@@ -6,8 +6,9 @@ from pathlib import Path
 
 from smplcore.errors import ModelFileError
 from smplcore.family.specs import get_spec
+from smplcore.io.open_model import open_model_path  # noqa: E402
 
-OPEN_MODEL_PATH = Path(__file__).resolve().parents[1] / "data" / "open_model.npz"
+OPEN_MODEL_PATH = open_model_path("neutral")
 
 
 def default_ext(model_type: str) -> str:
@@ -33,7 +34,7 @@ def locate_model_file(
     """
     if model_path is None or str(model_path) == "":
         if model_type is not None and get_spec(model_type).model_type == "open":
-            return OPEN_MODEL_PATH
+            return open_model_path(gender)
         raise ValueError(
             "model_path: a model file or folder is needed (or model_type='open' for the packaged open model)"
         )
@@ -46,7 +47,7 @@ def locate_model_file(
         raise ValueError(f"model_type: {path} is a folder; say which model type to load from it")
     spec = get_spec(model_type)
     if spec.model_type == "open":
-        return OPEN_MODEL_PATH
+        return open_model_path(gender)
     folder = path / spec.model_type if (path / spec.model_type).is_dir() else path
     ext = (ext or default_ext(spec.model_type)).lstrip(".").lower()
     if ext not in ("pkl", "npz"):

@@ -9,6 +9,7 @@ smplcore's allow-list unpickler, ``.npz`` as arrays (a dense matrix, or scipy's 
 from __future__ import annotations
 
 import pickle
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -230,7 +231,7 @@ def _read_npy(fh: Any) -> Any:
 
 def _pick_matrix(path: Path, value: Any, key: str | None) -> tuple[Any, tuple[str, ...] | None]:
     stored_names = None
-    if isinstance(value, dict):
+    if isinstance(value, Mapping):  # a dict, or the loader's lazy .npz
         if "names" in value:
             stored_names = tuple(str(n) for n in np.asarray(value["names"]).ravel())
         if {"data", "indices", "indptr", "shape"} <= set(value):  # scipy.sparse.save_npz

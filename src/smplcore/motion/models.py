@@ -18,7 +18,7 @@ import numpy as np
 
 from smplcore.errors import ModelFileError
 from smplcore.family.specs import get_spec
-from smplcore.io.locate import OPEN_MODEL_PATH
+from smplcore.io.open_model import open_model_path
 
 GENDERS = ("neutral", "male", "female")
 _GENDER_ALIASES = {
@@ -76,7 +76,7 @@ def model_file(model_path: str | Path | None, model_type: str, gender: str = "ne
     spec = get_spec(model_type)
     if model_path is None or str(model_path) == "":
         if spec.model_type == "open":
-            return OPEN_MODEL_PATH
+            return open_model_path(gender)
         raise ValueError(
             f"model_path: a {spec.display_name} model file or folder is needed "
             "(or model_type='open' for the packaged open model)"
@@ -169,7 +169,7 @@ class ModelCache:
 
         spec = get_spec(model_type)
         single_file = self.model_path is not None and Path(self.model_path).is_file()
-        fixed = spec.model_type == "open" or single_file  # one model whatever the gender
+        fixed = single_file  # one model whatever the gender (the open model comes in three genders too)
         key = (spec.model_type, "any" if fixed else normalize_gender(gender))
         if key in self.models:
             return self.models[key]

@@ -85,7 +85,7 @@ SMPLX_FORWARD_KEYWORDS = frozenset(
     }
 )
 # smplcore's own keywords, known besides smplx's.
-OWN_KEYWORDS = frozenset({"kernel", "fix_left_shapedirs", "data", "check_finite", "check_rotations"})
+OWN_KEYWORDS = frozenset({"kernel", "fix_left_shapedirs", "data", "check_finite", "check_rotations", "uv_path"})
 
 
 def split_keywords(

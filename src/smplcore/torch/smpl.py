@@ -79,6 +79,7 @@ class SMPL(nn.Module):
         kernel: str = "auto",
         check_finite: bool = True,
         check_rotations: bool = False,
+        uv_path: str | Path | None = None,
         **kwargs: Any,
     ) -> None:
         super().__init__()
@@ -91,6 +92,10 @@ class SMPL(nn.Module):
             for option in ("use_pca", "num_pca_comps", "flat_hand_mean"):
                 setup_opts.pop(option, None)
         data = _load(type(self), model_path, data_struct, data, gender, ext or self.DEFAULT_EXT, is_rhand)
+        if uv_path is not None:  # SMPL distributes its UV map as a separate .obj
+            from smplcore.io.uv import attach_uv
+
+            data = attach_uv(data, uv_path)
         if self.LAYER and "use_pca" not in setup_opts and not _has_hand_pca(data):
             setup_opts["use_pca"] = False  # a Layer never reads PCA hands; smplx still registers the bases
         self.setup = setup = ModelSetup.build(data, owner=name, **setup_opts)
