@@ -311,10 +311,10 @@ def test_open_model_vertices(tree, tmp_path):
     )
     summary = process_tree(tree, tmp_path, options, workers=0, progress=False, exclude=["Bad/*", "shape.npz"])
     assert summary.exit_code == 0 and summary.done == 3
-    model = BodyModel(model_type="open")
     rel = GOOD[1][0]
     got = _load(tmp_path / rel)
     motion = load_motion(tree / rel).resample(30.0, "nearest")
+    model = BodyModel(model_type="open", gender=motion.gender)  # the motion's gender picks the open model's variant
     params = motion.model_params("open")
     params["betas"] = params["betas"][:, : model.num_betas]
     expected = model(return_verts=True, **params)
