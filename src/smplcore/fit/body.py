@@ -223,6 +223,16 @@ class FitBody:
             self._cache[key] = points
         return points
 
+    def pose_prior_weights(self, weight: float) -> np.ndarray | None:
+        """(Q,) pose-prior weights: ``weight`` on every block but the global orientation (None for 0)."""
+        if not weight:
+            return None
+        w = np.full(self.num_pose, float(weight))
+        for b in self.blocks:
+            if b.name == "global_orient":
+                w[b.start : b.start + b.width] = 0.0
+        return w
+
     def full_pose(self, pose: np.ndarray) -> np.ndarray:
         """(B, J, 3) axis-angle of every joint from (B, Q) pose parameters."""
         full = pose if self.pose_map is None else pose @ self.pose_map

@@ -68,8 +68,6 @@ def initialize(body: FitBody, obj: Objective, state: State, *, iterations: int =
     batch = len(state.pose)
     state = state.copy()
     parents = body.parents
-    no_pose = Objective(**{**obj.__dict__, "pose_prior": None})
-    q = body.num_pose
     for _ in range(iterations):
         theta = body.full_pose(state.pose)
         rot = rodrigues(theta)
@@ -93,20 +91,28 @@ def initialize(body: FitBody, obj: Objective, state: State, *, iterations: int =
             parent_world = np.eye(3) if p < 0 else np.swapaxes(current_world[:, p], -1, -2)
             local[:, j] = parent_world @ current_world[:, j]
         state.pose = body.pose_from_full(rotation_log(local))
-        # shape and translation: exact for the fixed rotations (one Gauss–Newton step on those columns)
-        if obj.free_coeffs.any() or obj.fit_transl:
-            lin_obj = Objective(**{**no_pose.__dict__})
-            hess, grad, _ = normal_equations(body, lin_obj, state)
-            keep = np.arange(q, hess.shape[1])
-            hess, grad = hess[:, keep][:, :, keep], grad[:, keep]
-            cols = np.concatenate([np.flatnonzero(obj.free_coeffs)] + ([] if not obj.fit_transl else []))
-            shared = np.zeros(len(keep), bool)
-            shared[: len(cols)] = obj.shared[cols]
-            if batch == 1:
-                shared[:] = False
-            step = _step(hess, grad, np.zeros(batch), shared)
-            ncoef = len(cols)
-            state.coeffs[:, cols] += step[:, :ncoef]
-            if obj.fit_transl:
-                state.transl += step[:, ncoef:]
+        state = shape_and_translation(body, obj, state)
+    return state
+
+
+def shape_and_translation(body: FitBody, obj: Objective, state: State) -> State:
+    """The least-squares shape coefficients and translation for the state's rotations (exact: the posed
+    points are affine in them), by one Gauss–Newton step on those columns."""
+    if not (obj.free_coeffs.any() or obj.fit_transl):
+        return state
+    state = state.copy()
+    batch, q = len(state.pose), body.num_pose
+    lin_obj = Objective(**{**obj.__dict__, "pose_prior": None, "pose_mean": None})
+    hess, grad, _ = normal_equations(body, lin_obj, state)
+    keep = np.arange(q, hess.shape[1])
+    hess, grad = hess[:, keep][:, :, keep], grad[:, keep]
+    cols = np.flatnonzero(obj.free_coeffs)
+    shared = np.zeros(len(keep), bool)
+    shared[: len(cols)] = obj.shared[cols]
+    if batch == 1:
+        shared[:] = False
+    step = _step(hess, grad, np.full(batch, 1e-9), shared)
+    state.coeffs[:, cols] += step[:, : len(cols)]
+    if obj.fit_transl:
+        state.transl += step[:, len(cols) :]
     return state

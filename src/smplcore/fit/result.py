@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -42,11 +43,9 @@ class FitResult:
 
 
 def is_torch_model(model: Any) -> bool:
-    try:
-        import torch
-    except ImportError:  # pragma: no cover - torch is optional
-        return False
-    return isinstance(model, torch.nn.Module)
+    """Whether ``model`` is a torch module (without importing torch when it is not loaded)."""
+    torch = sys.modules.get("torch")
+    return torch is not None and isinstance(model, torch.nn.Module)
 
 
 def as_array(value: Any, name: str) -> np.ndarray:

@@ -17,6 +17,8 @@ from smplcore.fit.body import FitBody, Points, pose_points
 
 # Bodies per Jacobian chunk: keep a chunk's Jacobian (chunk × 3 n × P doubles) near 64 MB.
 _CHUNK_VALUES = 8_000_000
+# Up to this many residual rows per body, normal equations are formed by batched einsum.
+_SMALL_ROWS = 600
 
 
 @dataclass
@@ -44,7 +46,8 @@ class Objective:
     shared : (K,) which fitted coefficients are shared by the whole batch.
     fit_transl : fit the translation.
     shape_prior : weight of Σ c_k² over the fitted coefficients.
-    pose_prior : (Q,) weights of Σ q_k² (zero: none).
+    pose_prior : (Q,), (B, 1) or (B, Q) weights of Σ (q_k − μ_k)² (None: none).
+    pose_mean : (B, Q) the centre μ of the pose prior (None: zero).
     """
 
     points: Points
@@ -55,6 +58,7 @@ class Objective:
     fit_transl: bool = True
     shape_prior: float = 0.0
     pose_prior: np.ndarray | None = None
+    pose_mean: np.ndarray | None = None  # (B, Q) the pose prior's centre (None: zero)
 
 
 def _columns(body: FitBody, obj: Objective) -> np.ndarray:
@@ -89,7 +93,8 @@ def _prior_cost(obj: Objective, state: State) -> np.ndarray:
         c = state.coeffs[:, obj.free_coeffs]
         cost = cost + obj.shape_prior * np.sum(c * c, axis=1)
     if obj.pose_prior is not None:
-        cost = cost + np.sum(obj.pose_prior * state.pose * state.pose, axis=1)
+        d = state.pose if obj.pose_mean is None else state.pose - obj.pose_mean
+        cost = cost + np.sum(obj.pose_prior * d * d, axis=1)
     return cost
 
 
@@ -123,6 +128,14 @@ def normal_equations(
         jac = lin.jacobian.reshape(e - s, 3 * n, width)
         sw = np.sqrt(np.repeat(obj.weights[s:e], 3, axis=1))
         res = (lin.points - obj.targets[s:e]).reshape(e - s, 3 * n) * sw
+        if 3 * n <= _SMALL_ROWS:  # tiny systems: batched C loops (per-body BLAS calls cost more than they do)
+            jac = jac @ transform
+            grad[s:e] = np.einsum("brp,br->bp", jac, res * sw)
+            if hessian:
+                jw = jac * sw[..., None]
+                hess[s:e] = np.einsum("brp,brq->bpq", jw, jw)
+            cost[s:e] = np.einsum("br,br->b", res, res)
+            continue
         for b in range(e - s):
             if hessian:
                 jb = jac[b] * sw[b, :, None]
@@ -132,16 +145,13 @@ def normal_equations(
                 grad[s + b] = transform.T @ (jac[b].T @ (res[b] * sw[b]))
             cost[s + b] = res[b] @ res[b]
     # priors
-    x = _flat(state)[:, cols]
-    prior = np.zeros(len(cols))
-    q = body.num_pose
-    if obj.pose_prior is not None:
-        prior[:q] = obj.pose_prior
-    if obj.shape_prior:
-        is_coeff = (cols >= q) & (cols < q + body.num_coeffs)
-        prior[is_coeff] = obj.shape_prior
+    x = _flat(state)
+    if obj.pose_mean is not None:
+        x[:, : body.num_pose] -= obj.pose_mean
+    x = x[:, cols]
+    prior = _prior_diagonal(obj, cols, body.num_pose, body.num_coeffs, batch)
     if hessian:
-        hess = hess + np.eye(len(cols)) * prior
+        hess = hess + prior[:, :, None] * np.eye(len(cols))
     else:
         hess = None
     grad = grad + prior * x
@@ -169,14 +179,19 @@ def _step(hess: np.ndarray, grad: np.ndarray, damping: np.ndarray, shared_cols: 
     return step
 
 
+def _prior_diagonal(obj: Objective, cols: np.ndarray, q: int, k: int, batch: int) -> np.ndarray:
+    """(B, P) weights of the quadratic priors on the fitted columns."""
+    prior = np.zeros((batch, len(cols)))
+    if obj.pose_prior is not None:
+        prior[:, :q] = obj.pose_prior
+    if obj.shape_prior:
+        prior[:, (cols >= q) & (cols < q + k)] = obj.shape_prior
+    return prior
+
+
 def _rescaled(hess: np.ndarray, ratio: np.ndarray, obj: Objective, cols: np.ndarray, q: int, k: int) -> np.ndarray:
     """A subset's Gauss–Newton matrix scaled to the whole set (the priors' diagonal is not scaled)."""
-    prior = np.zeros(len(cols))
-    if obj.pose_prior is not None:
-        prior[:q] = obj.pose_prior
-    if obj.shape_prior:
-        prior[(cols >= q) & (cols < q + k)] = obj.shape_prior
-    eye = np.eye(len(cols)) * prior
+    eye = _prior_diagonal(obj, cols, q, k, len(hess))[:, :, None] * np.eye(len(cols))
     return (hess - eye) * ratio[:, None, None] + eye
 
 

@@ -142,7 +142,7 @@ def fit_vertices(
     share_betas : one set of betas for the whole batch (one person in many frames).
     fit_transl : fit the translation (else it stays at ``init``'s, or zero).
     shape_prior : weight of Σ β² added to the squared error (m²); 0 fits the data exactly.
-    pose_prior : weight of Σ θ² over the pose parameters (pulls towards the rest pose).
+    pose_prior : weight of Σ θ² over the pose parameters but the global orientation (towards the rest pose).
     init : forward keywords to start from (default: the closed-form initialiser from zero).
     init_iterations : rounds of the closed-form initialiser (0: start from ``init`` as is).
     max_iter, tol : Levenberg–Marquardt iterations per stage and relative cost decrease to stop at.
@@ -191,7 +191,7 @@ def fit_vertices(
         raise ValueError("vertices: need at least 3 points with positive weight per body")
     start = params_to_state(body, {**(init or {}), **({} if betas is None else {"betas": betas})}, batch)
     free, shared = coefficient_masks(body, fit_betas, fit_expression, share_betas)
-    pose_w = np.full(body.num_pose, pose_prior) if pose_prior else None
+    pose_w = body.pose_prior_weights(pose_prior)
     state, converged, iterations = solve(
         body,
         point_ids,
