@@ -7,8 +7,9 @@ full model (pose correctives included), batched over bodies. Works with torch mo
 NumPy either way).
 """
 
+from smplcore.fit.convert import convert, correspondence
 from smplcore.fit.joints import fit_joints
 from smplcore.fit.result import FitResult
 from smplcore.fit.vertices import fit_vertices
 
-__all__ = ["FitResult", "fit_joints", "fit_vertices"]
+__all__ = ["FitResult", "convert", "correspondence", "fit_joints", "fit_vertices"]

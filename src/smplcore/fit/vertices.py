@@ -103,7 +103,12 @@ def solve(
         state, _, _, iterations = levenberg_marquardt(body, sub, state, max_iter=max_iter, tol=tol)
     hessian_obj = sub if len(subset) < n else None
     state, _, converged, more = levenberg_marquardt(
-        body, objective(np.arange(n)), state, max_iter=max_iter, tol=tol, hessian_obj=hessian_obj
+        body,
+        objective(np.arange(n)),
+        state,
+        max_iter=max_iter if hessian_obj is None else 10,
+        tol=tol,
+        hessian_obj=hessian_obj,
     )
     return state, converged, iterations + more
 
@@ -126,7 +131,7 @@ def fit_vertices(
     init: dict[str, Any] | None = None,
     init_iterations: int = 3,
     max_iter: int = 30,
-    tol: float = 1e-8,
+    tol: float = 1e-6,
 ) -> FitResult:
     """Parameters of ``model`` whose mesh matches vertices in correspondence.
 
