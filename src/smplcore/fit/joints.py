@@ -16,7 +16,7 @@ import numpy as np
 from smplcore.errors import ShapeError
 from smplcore.fit.body import FitBody, pose_points
 from smplcore.fit.initialize import kabsch, rotation_log, shape_and_translation
-from smplcore.fit.result import FitResult, as_array, params_to_state, state_to_params
+from smplcore.fit.result import FitResult, as_array, params_to_state, single_threaded_blas, state_to_params
 from smplcore.fit.solver import Objective, State, levenberg_marquardt
 from smplcore.fit.vertices import _weights, coefficient_masks
 
@@ -110,6 +110,7 @@ def bone_rotations(body: FitBody, point_ids: np.ndarray, targets: np.ndarray, st
     return state
 
 
+@single_threaded_blas
 def fit_joints(
     model: Any,
     joints: Any,

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import functools
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -40,6 +42,23 @@ class FitResult:
     @property
     def all_converged(self) -> bool:
         return bool(np.all(self.converged))
+
+
+def single_threaded_blas(fn: Callable) -> Callable:
+    """Run ``fn`` with one BLAS thread when threadpoolctl is installed: the solver makes many small
+    products (one per body), where OpenBLAS's thread start-up costs more than the work (20x on a busy
+    2-core machine)."""
+
+    @functools.wraps(fn)
+    def run(*args: Any, **kwargs: Any) -> Any:
+        try:
+            from threadpoolctl import threadpool_limits
+        except ImportError:  # optional: without it BLAS keeps its own threading
+            return fn(*args, **kwargs)
+        with threadpool_limits(limits=1, user_api="blas"):
+            return fn(*args, **kwargs)
+
+    return run
 
 
 def is_torch_model(model: Any) -> bool:

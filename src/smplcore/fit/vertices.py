@@ -9,7 +9,7 @@ import numpy as np
 from smplcore.errors import ShapeError
 from smplcore.fit.body import FitBody, pose_points
 from smplcore.fit.initialize import initialize
-from smplcore.fit.result import FitResult, as_array, params_to_state, state_to_params
+from smplcore.fit.result import FitResult, as_array, params_to_state, single_threaded_blas, state_to_params
 from smplcore.fit.solver import Objective, State, levenberg_marquardt
 
 # Above this many points the first iterations run on an even subset (the last ones on all points).
@@ -113,6 +113,7 @@ def solve(
     return state, converged, iterations + more
 
 
+@single_threaded_blas
 def fit_vertices(
     model: Any,
     vertices: Any,
