@@ -1,0 +1,15 @@
+"""Fitting: model parameters from observations (vertices, joints), and conversion between models.
+
+``fit_vertices`` starts from a closed-form initialiser (per-part Procrustes rotations, linear least
+squares for shape and translation) and refines with Levenberg–Marquardt on the exact Jacobian of the
+full model (pose correctives included), batched over bodies. Works with torch models of
+:func:`smplcore.create` and the NumPy :class:`smplcore.BodyModel` alike (the solver runs in float64
+NumPy either way).
+"""
+
+from smplcore.fit.convert import convert, correspondence
+from smplcore.fit.joints import fit_joints
+from smplcore.fit.result import FitResult
+from smplcore.fit.vertices import fit_vertices
+
+__all__ = ["FitResult", "convert", "correspondence", "fit_joints", "fit_vertices"]

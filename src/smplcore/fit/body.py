@@ -1,0 +1,330 @@
+"""A model's arrays in float64 NumPy, laid out for fitting: posed points and their exact Jacobians.
+
+The fitting code sees a model as a set of *points*: the mesh vertices followed by the skeleton joints.
+A joint is a point at its rest position, skinned rigidly to itself, with no pose correctives; its posed
+position is then exactly the kinematic chain's. Every point is posed as
+
+    x_i = Σ_m w_im (G_{l_m} (v̄_i − j̄_{l_m}) + p_{l_m}) + t,   v̄_i = template_i + S_i c + P_i f(R)
+
+with ``G``, ``p`` the world rotations and positions of the joints, ``c`` the shape (and expression)
+coefficients, ``f`` the pose-corrective features and ``t`` the translation. The Jacobian with respect
+to a local rotation increment ``ω_k`` (``R_k ← R_k exp(ω_k)``) is ``−[u_ik]× G_k`` with
+``u_ik = Σ_{m: l_m below k} w_im (x_im − p_k)`` plus the pose-corrective term, and with respect to the
+shape coefficients ``A_i S_i + Σ_m w_im T_{l_m}``, ``A_i = Σ_m w_im G_{l_m}``,
+``T_j = Σ_{a on the chain of j} (G_{parent(a)} − G_a) J̄S_a``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from smplcore.engine import KinematicTree, rodrigues, world_transforms
+
+
+@dataclass(frozen=True)
+class PoseBlock:
+    """One forward keyword of the model's pose: its columns in the parameter vector and its joints."""
+
+    name: str
+    start: int  # first column in the pose-parameter vector
+    width: int  # columns (3 n, or the PCA coefficient count)
+    first_joint: int
+    num_joints: int
+    components: np.ndarray | None  # (C, 3 n) PCA basis or None
+
+
+@dataclass(frozen=True)
+class Points:
+    """Rows of :class:`FitBody` for a chosen set of points (vertex ids, then joint ids offset by V)."""
+
+    ids: np.ndarray  # (n,) into the extended point set
+    template: np.ndarray  # (n, 3)
+    shape: np.ndarray  # (n, 3, K)
+    posedirs: np.ndarray | None  # (n, 3, J - 1, 9) or None
+    joints: np.ndarray  # (n, m) influencing joints (padded with joint 0 at weight 0)
+    weights: np.ndarray  # (n, m)
+    ancestors: np.ndarray  # (n, a) joints whose rotation moves the point (padded with J)
+    below: np.ndarray  # (n, a, m) w_im if joint l_m is at or below ancestor a, else 0
+
+
+@dataclass(eq=False)
+class FitBody:
+    """The arrays of one model for fitting, float64 (see the module docstring).
+
+    Build with :meth:`from_model` from a torch module of :func:`smplcore.create` or a NumPy
+    :class:`smplcore.BodyModel`.
+    """
+
+    model_type: str
+    num_vertices: int
+    num_betas: int
+    num_expression: int
+    parents: np.ndarray  # (J,)
+    tree: KinematicTree
+    template: np.ndarray  # (V + J, 3)
+    shape: np.ndarray  # (V + J, 3, K)
+    posedirs: np.ndarray | None  # (V, 3, J - 1, 9)
+    joints: np.ndarray  # (V + J, m)
+    weights: np.ndarray  # (V + J, m)
+    joint_template: np.ndarray  # (J, 3)
+    joint_shape: np.ndarray  # (J, 3, K)
+    blocks: tuple[PoseBlock, ...]
+    pose_mean: np.ndarray  # (3 J,)
+    pose_map: np.ndarray | None  # (Q, 3 J) full pose = pose_mean + q @ pose_map; None: identity
+    output_joint_names: list[str]
+    output_rows: np.ndarray  # (J', V + J) output joints as combinations of points (dynamic contour: zero)
+    faces: np.ndarray
+    dynamic_joints: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def num_joints(self) -> int:
+        return len(self.parents)
+
+    @property
+    def num_coeffs(self) -> int:
+        return self.shape.shape[-1]
+
+    @property
+    def num_pose(self) -> int:
+        return sum(b.width for b in self.blocks)
+
+    @classmethod
+    def from_model(cls, model: Any) -> FitBody:
+        """The fitting arrays of ``model`` (cached on the model object)."""
+        setup = getattr(model, "setup", None)
+        if setup is None or not hasattr(setup, "spec"):
+            raise TypeError(
+                f"model: expected a model of smplcore.create() or a smplcore.BodyModel, got {type(model).__name__}"
+            )
+        cached = getattr(model, "_smplcore_fit_body", None)
+        if cached is not None and cached[0] is setup:
+            return cached[1]
+        body = cls._build(setup)
+        try:
+            object.__setattr__(model, "_smplcore_fit_body", (setup, body))
+        except (AttributeError, TypeError):
+            pass
+        return body
+
+    @classmethod
+    def _build(cls, setup: Any) -> FitBody:
+        d = setup.data
+        f64 = np.float64
+        v_template = np.asarray(d.v_template, f64)
+        dirs = np.concatenate([np.asarray(setup.shapedirs, f64), np.asarray(setup.exprdirs, f64)], axis=-1)
+        regressor = d.J_regressor
+        regressor = np.asarray(regressor.toarray() if hasattr(regressor, "toarray") else regressor, f64)
+        parents = np.array(d.parents, np.int64)
+        parents[0] = -1
+        num_verts, num_joints = v_template.shape[0], len(parents)
+        joint_template = regressor @ v_template
+        joint_shape = np.einsum("jv,vck->jck", regressor, dirs)
+        template = np.concatenate([v_template, joint_template])
+        shape = np.concatenate([dirs, joint_shape])
+        weights = np.asarray(d.weights, f64)
+        width = max(1, int((weights > 0).sum(1).max()))
+        order = np.argsort(-weights, axis=1, kind="stable")[:, :width]
+        w = np.take_along_axis(weights, order, axis=1)
+        order = np.where(w > 0, order, 0)
+        joints = np.concatenate([order, np.zeros((num_joints, width), np.int64)])
+        joints[num_verts:, 0] = np.arange(num_joints)
+        point_w = np.concatenate([w, np.zeros((num_joints, width))])
+        point_w[num_verts:, 0] = 1.0
+        posedirs = None
+        if d.posedirs is not None and np.any(d.posedirs):
+            posedirs = np.asarray(d.posedirs, f64).reshape(num_verts, 3, num_joints - 1, 9)
+        blocks, start, joint = [], 0, 0
+        for block in setup.spec.pose_blocks:
+            comps = setup.hand_components.get(block.name)
+            comps = None if comps is None else np.asarray(comps, f64)
+            blocks.append(PoseBlock(block.name, start, setup.pose_width(block.name), joint, block.num_joints, comps))
+            start += blocks[-1].width
+            joint += block.num_joints
+        pose_map = None
+        if any(b.components is not None for b in blocks):
+            pose_map = np.zeros((start, 3 * num_joints))
+            for b in blocks:
+                cols = slice(3 * b.first_joint, 3 * (b.first_joint + b.num_joints))
+                pose_map[b.start : b.start + b.width, cols] = np.eye(b.width) if b.components is None else b.components
+        names = list(setup.output_joint_names)
+        rows = np.zeros((len(names), num_verts + num_joints))
+        rows[np.arange(num_joints), num_verts + np.arange(num_joints)] = 1.0
+        extra = list(setup.extra_joint_ids)
+        rows[num_joints + np.arange(len(extra)), extra] = 1.0
+        if setup.spec.landmarks and d.lmk_faces_idx is not None:
+            faces = np.asarray(d.faces)[np.asarray(d.lmk_faces_idx)]
+            first = num_joints + len(extra)
+            for c in range(3):
+                rows[first + np.arange(len(faces)), faces[:, c]] += np.asarray(d.lmk_bary_coords)[:, c]
+        body = cls(
+            model_type=setup.spec.model_type,
+            num_vertices=num_verts,
+            num_betas=setup.num_betas,
+            num_expression=setup.num_expression_coeffs,
+            parents=parents,
+            tree=KinematicTree.from_parents(parents),
+            template=template,
+            shape=shape,
+            posedirs=posedirs,
+            joints=joints,
+            weights=point_w,
+            joint_template=joint_template,
+            joint_shape=joint_shape,
+            blocks=tuple(blocks),
+            pose_mean=np.asarray(setup.pose_mean, f64).reshape(-1),
+            pose_map=pose_map,
+            output_joint_names=names,
+            output_rows=rows,
+            faces=np.asarray(d.faces),
+        )
+        body.dynamic_joints = np.flatnonzero(~rows.any(axis=1))
+        return body
+
+    # -- point sets ---------------------------------------------------------------------------------
+
+    def points(self, ids: np.ndarray) -> Points:
+        """The rows of the points ``ids`` (cached per id set)."""
+        ids = np.asarray(ids, np.int64)
+        key = ids.tobytes()
+        cached = self._cache.get(key)
+        if cached is not None:
+            return cached
+        joints, weights = self.joints[ids], self.weights[ids]
+        num_joints = self.num_joints
+        # ancestors of each point: every joint on the chains of its influencing joints
+        chains = [self.tree.chain_to_root(j) for j in range(num_joints)]
+        below_of = np.zeros((num_joints, num_joints), bool)  # below_of[k, j]: j at or below k
+        for j, chain in enumerate(chains):
+            below_of[chain, j] = True
+        influence = np.zeros((len(ids), num_joints), bool)
+        for m in range(joints.shape[1]):
+            influence[np.arange(len(ids)), joints[:, m]] |= weights[:, m] > 0
+        moved = (influence.astype(np.int64) @ below_of.T.astype(np.int64)) > 0  # (n, J)
+        width = max(1, int(moved.sum(1).max()))
+        ancestors = np.full((len(ids), width), num_joints, np.int64)
+        for i, row in enumerate(moved):
+            ks = np.flatnonzero(row)
+            ancestors[i, : len(ks)] = ks
+        below = np.zeros((len(ids), width, joints.shape[1]))
+        valid = ancestors < num_joints
+        safe = np.where(valid, ancestors, 0)
+        below = below_of[safe[:, :, None], joints[:, None, :]] * valid[:, :, None] * weights[:, None, :]
+        posedirs = None
+        if self.posedirs is not None:
+            posedirs = np.zeros((len(ids), 3, num_joints - 1, 9))
+            mesh = ids < self.num_vertices
+            posedirs[mesh] = self.posedirs[ids[mesh]]
+        points = Points(ids, self.template[ids], self.shape[ids], posedirs, joints, weights, ancestors, below)
+        if len(self._cache) < 16:
+            self._cache[key] = points
+        return points
+
+    def pose_prior_weights(self, weight: float) -> np.ndarray | None:
+        """(Q,) pose-prior weights: ``weight`` on every block but the global orientation (None for 0)."""
+        if not weight:
+            return None
+        w = np.full(self.num_pose, float(weight))
+        for b in self.blocks:
+            if b.name == "global_orient":
+                w[b.start : b.start + b.width] = 0.0
+        return w
+
+    def full_pose(self, pose: np.ndarray) -> np.ndarray:
+        """(B, J, 3) axis-angle of every joint from (B, Q) pose parameters."""
+        full = pose if self.pose_map is None else pose @ self.pose_map
+        return (full + self.pose_mean).reshape(len(pose), self.num_joints, 3)
+
+    def pose_from_full(self, full: np.ndarray) -> np.ndarray:
+        """(B, Q) pose parameters closest (least squares) to a (B, J, 3) full pose."""
+        flat = full.reshape(len(full), -1) - self.pose_mean
+        if self.pose_map is None:
+            return flat
+        return np.linalg.lstsq(self.pose_map.T, flat.T, rcond=None)[0].T
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) cross-product matrices of (..., 3) vectors."""
+    z = np.zeros_like(v[..., 0])
+    x, y, w = v[..., 0], v[..., 1], v[..., 2]
+    return np.stack([z, -w, y, w, z, -x, -y, x, z], axis=-1).reshape(*v.shape, 3)
+
+
+def right_jacobian(theta: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) right Jacobian of SO(3): ``R(θ + dθ) ≈ R(θ) exp([J_r(θ) dθ]×)``."""
+    t2 = np.sum(theta * theta, axis=-1)[..., None, None]
+    small = t2 < 1e-6
+    safe = np.where(small, 1.0, t2)
+    t = np.sqrt(safe)
+    a = np.where(small, 0.5 - t2 / 24, (1 - np.cos(t)) / safe)
+    b = np.where(small, 1 / 6 - t2 / 120, (t - np.sin(t)) / (safe * t))
+    k = skew(theta)
+    return np.eye(3) - a * k + b * (k @ k)
+
+
+@dataclass
+class Linearization:
+    """Posed points and, when asked, their Jacobian (B, n, 3, P) over [pose θ (3 J), coeffs (K), transl (3)]."""
+
+    points: np.ndarray
+    jacobian: np.ndarray | None = None
+
+
+def pose_points(
+    body: FitBody, pts: Points, theta: np.ndarray, coeffs: np.ndarray, transl: np.ndarray, jacobian: bool = False
+) -> Linearization:
+    """Pose the points ``pts`` of bodies (B, J, 3) ``theta``, (B, K) ``coeffs``, (B, 3) ``transl``.
+
+    With ``jacobian`` the derivatives with respect to the full axis-angle pose (3 J columns, joint-major),
+    the coefficients and the translation are returned too (exact, not finite differences).
+    """
+    batch, num_joints = theta.shape[:2]
+    rot = rodrigues(theta)
+    jrest = body.joint_template + np.einsum("jck,bk->bjc", body.joint_shape, coeffs)
+    world, pos = world_transforms(rot, jrest, body.tree)
+    shift = pos - (world @ jrest[..., None])[..., 0]
+    rest = pts.template + np.einsum("nck,bk->bnc", pts.shape, coeffs)
+    if pts.posedirs is not None:
+        feats = (rot[:, 1:] - np.eye(3)).reshape(batch, num_joints - 1, 9)
+        rest = rest + np.einsum("ncjf,bjf->bnc", pts.posedirs, feats)
+    g = world[:, pts.joints]  # (B, n, m, 3, 3)
+    x = (g @ rest[:, :, None, :, None])[..., 0] + shift[:, pts.joints]  # (B, n, m, 3)
+    posed = np.einsum("nm,bnmc->bnc", pts.weights, x) + transl[:, None]
+    if not jacobian:
+        return Linearization(posed)
+    n = len(pts.ids)
+    num_coeffs = coeffs.shape[1]
+    jac = np.zeros((batch, n, 3, 3 * num_joints + num_coeffs + 3))
+    # rotations: u_ia = Σ_m below_iam x_im − (Σ_m below_iam) p_{k_a}
+    pos_pad = np.concatenate([pos, np.zeros((batch, 1, 3))], axis=1)
+    u = np.einsum("nam,bnmc->bnac", pts.below, x) - pts.below.sum(-1)[None, :, :, None] * pos_pad[:, pts.ancestors]
+    local = world @ right_jacobian(theta)  # (B, J, 3, 3): d world-axis / d θ_k
+    local_pad = np.concatenate([local, np.zeros((batch, 1, 3, 3))], axis=1)
+    blocks = -skew(u) @ local_pad[:, pts.ancestors]  # (B, n, a, 3, 3)
+    rot_jac = np.zeros((batch, n, num_joints + 1, 3, 3))
+    rows = np.arange(n)[:, None]
+    rot_jac[:, rows, pts.ancestors] = blocks
+    rot_jac = rot_jac[:, :, :num_joints]
+    blend = np.einsum("nm,bnmcd->bncd", pts.weights, g)  # A_i
+    if pts.posedirs is not None:
+        # d vec(R_k) / d θ_k: columns vec(R_k [c]×) for the columns c of J_r(θ_k)
+        jr = right_jacobian(theta[:, 1:])
+        dvec = (rot[:, 1:, None] @ skew(np.swapaxes(jr, -1, -2))).reshape(batch, num_joints - 1, 3, 9)
+        corr = np.einsum("ncjf,bjaf->bnjca", pts.posedirs, dvec)  # (B, n, J-1, 3, 3)
+        rot_jac[:, :, 1:] += blend[:, :, None] @ corr
+    jac[..., : 3 * num_joints] = rot_jac.transpose(0, 1, 3, 2, 4).reshape(batch, n, 3, 3 * num_joints)
+    # coefficients
+    parent = np.maximum(body.parents, 0)
+    parent_world = np.where((body.parents >= 0)[None, :, None, None], world[:, parent], np.eye(3))
+    steps = (parent_world - world) @ body.joint_shape  # (B, J, 3, K)
+    totals = np.empty_like(steps)
+    for j in body.tree.order:
+        p = body.parents[j]
+        totals[:, j] = steps[:, j] if p < 0 else steps[:, j] + totals[:, p]
+    coeff_jac = blend @ pts.shape + np.einsum("nm,bnmck->bnck", pts.weights, totals[:, pts.joints])
+    jac[..., 3 * num_joints : 3 * num_joints + num_coeffs] = coeff_jac
+    jac[..., -3:] = np.eye(3)
+    return Linearization(posed, jac)

@@ -1,0 +1,126 @@
+"""The result of a fit, and the conversion between solver states and the model's forward keywords."""
+
+from __future__ import annotations
+
+import functools
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from smplcore.errors import ShapeError
+from smplcore.fit.body import FitBody
+from smplcore.fit.solver import State
+
+
+@dataclass
+class FitResult:
+    """What a fit found.
+
+    Attributes
+    ----------
+    params : the model's forward keywords (``betas``, ``global_orient``, ``body_pose``, the hand, jaw and
+        eye blocks, ``expression``, ``transl``) as arrays of the model's kind (torch tensors for a torch
+        model, NumPy arrays for a :class:`smplcore.BodyModel`), batch first; ``model(**r.params)``
+        reproduces the fit.
+    vertex_error : (B,) mean distance (metres) between the fitted and the target vertices, or None.
+    joint_error : (B,) mean distance (metres) between the fitted and the target joints, or None.
+    reprojection_error : (B,) mean distance (pixels) of the projected keypoints, or None.
+    converged : (B,) whether the solver converged for each body.
+    iterations : refinement iterations run.
+    """
+
+    params: dict[str, Any]
+    vertex_error: np.ndarray | None = None
+    joint_error: np.ndarray | None = None
+    reprojection_error: np.ndarray | None = None
+    converged: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    iterations: int = 0
+
+    @property
+    def all_converged(self) -> bool:
+        return bool(np.all(self.converged))
+
+
+def single_threaded_blas(fn: Callable) -> Callable:
+    """Run ``fn`` with one BLAS thread when threadpoolctl is installed: the solver makes many small
+    products (one per body), where OpenBLAS's thread start-up costs more than the work (20x on a busy
+    2-core machine)."""
+
+    @functools.wraps(fn)
+    def run(*args: Any, **kwargs: Any) -> Any:
+        try:
+            from threadpoolctl import threadpool_limits
+        except ImportError:  # optional: without it BLAS keeps its own threading
+            return fn(*args, **kwargs)
+        with threadpool_limits(limits=1, user_api="blas"):
+            return fn(*args, **kwargs)
+
+    return run
+
+
+def is_torch_model(model: Any) -> bool:
+    """Whether ``model`` is a torch module (without importing torch when it is not loaded)."""
+    torch = sys.modules.get("torch")
+    return torch is not None and isinstance(model, torch.nn.Module)
+
+
+def as_array(value: Any, name: str) -> np.ndarray:
+    """``value`` (NumPy, torch, nested lists) as a finite float64 NumPy array; errors name ``name``."""
+    if hasattr(value, "detach"):
+        value = value.detach().cpu().numpy()
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ShapeError(f"{name}: expected a numeric array, got {type(value).__name__}") from exc
+    if not np.all(np.isfinite(array)):
+        bad = int(np.sum(~np.isfinite(array)))
+        raise ValueError(f"{name}: {bad} non-finite value(s) (NaN or inf); remove them or give them zero weight")
+    return array
+
+
+def state_to_params(body: FitBody, model: Any, state: State) -> dict[str, Any]:
+    """The forward keywords of ``model`` for a solver state."""
+    params: dict[str, np.ndarray] = {}
+    for block in body.blocks:
+        params[block.name] = state.pose[:, block.start : block.start + block.width]
+    params["betas"] = state.coeffs[:, : body.num_betas]
+    if body.num_expression:
+        params["expression"] = state.coeffs[:, body.num_betas :]
+    params["transl"] = state.transl
+    if is_torch_model(model):
+        import torch
+
+        dtype = getattr(model, "dtype", torch.float32)
+        device = model.v_template.device if hasattr(model, "v_template") else "cpu"
+        return {k: torch.as_tensor(np.ascontiguousarray(v), dtype=dtype, device=device) for k, v in params.items()}
+    dtype = getattr(model, "dtype", np.float32)
+    return {k: np.ascontiguousarray(v, dtype=dtype) for k, v in params.items()}
+
+
+def params_to_state(body: FitBody, params: dict[str, Any], batch: int) -> State:
+    """A solver state from forward keywords (missing ones zero; batch 1 broadcast)."""
+
+    def rows(name: str, width: int) -> np.ndarray:
+        value = params.get(name)
+        if value is None:
+            return np.zeros((batch, width))
+        array = as_array(value, name)
+        if array.ndim == 1:
+            array = array[None]
+        array = array.reshape(array.shape[0], -1)
+        if array.shape[1] < width and name in ("betas", "expression"):
+            array = np.concatenate([array, np.zeros((array.shape[0], width - array.shape[1]))], axis=1)
+        if array.shape[1] > width and name in ("betas", "expression"):
+            array = array[:, :width]
+        if array.shape[1] != width or array.shape[0] not in (1, batch):
+            raise ShapeError(f"{name}: expected ({batch}, {width}), got {tuple(array.shape)}")
+        return np.broadcast_to(array, (batch, width)).copy()
+
+    pose = np.concatenate([rows(b.name, b.width) for b in body.blocks], axis=1)
+    coeffs = rows("betas", body.num_betas)
+    if body.num_expression:
+        coeffs = np.concatenate([coeffs, rows("expression", body.num_expression)], axis=1)
+    return State(pose, coeffs, rows("transl", 3))

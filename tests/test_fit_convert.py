@@ -1,0 +1,88 @@
+"""fit.convert: model-to-itself identity, official deformation-transfer files, computed and cached maps."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import smplcore
+from smplcore import fit
+from smplcore.errors import ModelFileError
+
+
+@pytest.fixture(scope="module")
+def mano(fake_models):
+    return smplcore.BodyModel(fake_models["root"], model_type="mano", use_pca=False, dtype=np.float64)
+
+
+def _hand_params(batch, seed):
+    rng = np.random.default_rng(seed)
+    return {
+        "global_orient": rng.normal(0, 0.5, (batch, 3)),
+        "hand_pose": rng.normal(0, 0.3, (batch, 45)),
+        "betas": rng.normal(0, 1, (batch, 10)),
+        "transl": rng.normal(0, 0.2, (batch, 3)),
+    }
+
+
+def test_model_to_itself_is_the_identity_within_a_millimetre(mano):
+    params = _hand_params(2, 0)
+    r = fit.convert(params, mano, mano)
+    assert r.vertex_error.max() < 1e-3
+    np.testing.assert_allclose(mano(**r.params).vertices, mano(**params).vertices, atol=1e-3)
+
+
+def test_open_model_to_itself(fake_models):
+    model = smplcore.BodyModel(model_type="open")
+    params = {"body_pose": np.full((1, 69), 0.1), "betas": np.ones((1, 10))}
+    r = fit.convert(params, model, model)
+    assert r.vertex_error.max() < 1e-3
+    assert np.abs(model(**r.params).vertices - model(**params).vertices).max() < 1e-3
+
+
+def test_deformation_transfer_file_is_read_safely(mano, tmp_path):
+    n = mano.setup.data.v_template.shape[0]
+    rng = np.random.default_rng(1)
+    perm = rng.permutation(n)
+    mtx = sp.csr_matrix((np.ones(n), (np.arange(n), perm)), shape=(n, 2 * n))  # vertex half, then normals
+    path = tmp_path / "mano2mano_deftrafo_setup.pkl"
+    with open(path, "wb") as fh:
+        pickle.dump({"mtx": mtx}, fh, protocol=2)
+    corr = fit.correspondence(mano, mano, deformation_transfer=path)
+    assert corr.kind == "file"
+    verts = mano(**_hand_params(1, 2)).vertices
+    np.testing.assert_allclose(corr.apply(verts), verts[:, perm])
+    with open(tmp_path / "bad.pkl", "wb") as fh:
+        pickle.dump({"mtx": sp.csr_matrix((3, 3))}, fh, protocol=2)
+    with pytest.raises(ModelFileError, match="mtx"):
+        fit.correspondence(mano, mano, deformation_transfer=tmp_path / "bad.pkl")
+
+
+def test_computed_correspondence_is_barycentric_and_cached(fake_models, tmp_path):
+    source = smplcore.BodyModel(model_type="open")
+    target = smplcore.BodyModel(fake_models["root"], model_type="smpl")
+    corr = fit.correspondence(source, target, cache_dir=tmp_path)
+    assert corr.kind == "templates"
+    assert corr.indices.shape == (target.setup.data.v_template.shape[0], 3)
+    np.testing.assert_allclose(corr.weights.sum(1), 1.0)
+    assert (corr.weights >= -1e-12).all()
+    assert len(list((tmp_path / "correspondences").glob("*.npz"))) == 1
+    again = fit.correspondence(source, target, cache_dir=tmp_path)
+    assert again.kind == "templates (cached)"
+    np.testing.assert_array_equal(again.indices, corr.indices)
+
+
+def test_joint_fallback(mano):
+    params = _hand_params(1, 3)
+    r = fit.convert(params, mano, mano, method="joints", pose_prior=1e-9, shape_prior=0.0)
+    assert r.joint_error.max() < 1e-4
+    with pytest.raises(ValueError, match="method"):
+        fit.convert(params, mano, mano, method="nearest")
+
+
+def test_bad_params(mano):
+    with pytest.raises(ValueError, match="params\\['hand_pose'\\]"):
+        fit.convert({"hand_pose": np.full((1, 45), np.nan)}, mano, mano)

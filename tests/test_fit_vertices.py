@@ -1,0 +1,206 @@
+"""fit_vertices: exact Jacobians, recovery of known parameters, options, NumPy == torch, bad inputs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import smplcore
+from smplcore import fit
+from smplcore.errors import ShapeError
+from smplcore.fit.body import FitBody, pose_points
+
+MODEL_TYPES = ["smpl", "smplh", "smplx", "mano", "flame", "open"]
+
+
+def _model(fake_models, model_type, **kw):
+    if model_type == "open":
+        return smplcore.BodyModel(model_type="open", dtype=np.float64, **kw)
+    return smplcore.BodyModel(fake_models["root"], model_type=model_type, dtype=np.float64, **kw)
+
+
+def _random_params(model, batch, rng, scale=0.3, transl=True):
+    body = FitBody.from_model(model)
+    params = {b.name: rng.normal(0, scale, (batch, b.width)) for b in body.blocks}
+    params["betas"] = rng.normal(0, 1, (batch, model.num_betas))
+    if body.num_expression:
+        params["expression"] = rng.normal(0, 1, (batch, body.num_expression))
+    if transl:
+        params["transl"] = rng.normal(0, 0.5, (batch, 3))
+    return params
+
+
+def _subset(model, size=500):
+    count = model.setup.data.v_template.shape[0]
+    return np.unique(np.linspace(0, count - 1, min(size, count)).astype(int))
+
+
+@pytest.mark.parametrize("model_type", MODEL_TYPES)
+def test_jacobian_matches_finite_differences(fake_models, model_type):
+    model = _model(fake_models, model_type)
+    body = FitBody.from_model(model)
+    rng = np.random.default_rng(0)
+    ids = np.sort(rng.choice(body.num_vertices + body.num_joints, 60, replace=False))
+    pts = body.points(ids)
+    theta = rng.normal(0, 0.4, (2, body.num_joints, 3))
+    coeffs, transl = rng.normal(0, 1, (2, body.num_coeffs)), rng.normal(0, 1, (2, 3))
+    jac = pose_points(body, pts, theta, coeffs, transl, jacobian=True).jacobian
+    jac = jac.reshape(2, -1, jac.shape[-1])
+    x0 = np.concatenate([theta.reshape(2, -1), coeffs, transl], axis=1)
+    nj3, k = theta[0].size, coeffs.shape[1]
+
+    def f(x):
+        return pose_points(body, pts, x[:, :nj3].reshape(theta.shape), x[:, nj3 : nj3 + k], x[:, -3:]).points
+
+    fd = np.empty_like(jac)
+    eps = 1e-6
+    for c in range(x0.shape[1]):
+        step = np.zeros_like(x0)
+        step[:, c] = eps
+        fd[:, :, c] = ((f(x0 + step) - f(x0 - step)) / (2 * eps)).reshape(2, -1)
+    assert np.abs(fd - jac).max() < 1e-7 * max(1.0, np.abs(jac).max())
+
+
+@pytest.mark.parametrize("model_type", MODEL_TYPES)
+def test_posed_points_match_the_model(fake_models, model_type):
+    model = _model(fake_models, model_type)
+    body = FitBody.from_model(model)
+    params = _random_params(model, 2, np.random.default_rng(1))
+    out = model(**params)
+    state = fit.result.params_to_state(body, params, 2)
+    pts = body.points(np.arange(body.num_vertices + body.num_joints))
+    posed = pose_points(body, pts, body.full_pose(state.pose), state.coeffs, state.transl).points
+    atol = 1e-6 if model_type == "open" else 1e-10  # the open model's forward keeps some float32 arrays
+    np.testing.assert_allclose(posed[:, : body.num_vertices], out.vertices, atol=atol)
+    np.testing.assert_allclose(posed[:, body.num_vertices :], out.joints[:, : body.num_joints], atol=atol)
+
+
+@pytest.mark.parametrize("model_type", MODEL_TYPES)
+def test_recovers_known_parameters_from_exact_vertices(fake_models, model_type):
+    model = _model(fake_models, model_type)
+    params = _random_params(model, 2, np.random.default_rng(2))
+    ids = _subset(model)
+    target = model(**params).vertices
+    r = fit.fit_vertices(model, target[:, ids], vertex_ids=ids)
+    assert r.converged.all()
+    assert r.vertex_error.max() < 1e-6
+    full = np.linalg.norm(model(**r.params).vertices - target, axis=-1).mean(1)
+    assert full.max() < 1e-3  # every vertex, not just the fitted ones, within 1 mm
+    np.testing.assert_allclose(r.params["betas"], params["betas"], atol=1e-4)
+
+
+def test_recovers_the_open_model_from_its_whole_mesh():
+    model = smplcore.BodyModel(model_type="open")  # float32, as users run it
+    params = _random_params(model, 1, np.random.default_rng(3))
+    target = model(**params).vertices
+    r = fit.fit_vertices(model, target)
+    assert r.converged.all() and r.vertex_error.max() < 1e-4
+    assert r.params["betas"].dtype == np.float32
+    np.testing.assert_allclose(model(**r.params).vertices, target, atol=1e-4)
+
+
+def test_pca_hands_are_fitted_as_pca_coefficients(fake_models):
+    model = _model(fake_models, "smplh", use_pca=True, num_pca_comps=6)
+    params = _random_params(model, 1, np.random.default_rng(4))
+    assert params["left_hand_pose"].shape == (1, 6)
+    target = model(**params).vertices
+    ids = _subset(model)
+    r = fit.fit_vertices(model, target[:, ids], vertex_ids=ids)
+    assert r.params["left_hand_pose"].shape == (1, 6)
+    assert np.linalg.norm(model(**r.params).vertices - target, axis=-1).mean() < 1e-3
+
+
+def test_shared_betas_over_a_batch(fake_models):
+    model = _model(fake_models, "smpl")
+    rng = np.random.default_rng(5)
+    params = _random_params(model, 3, rng)
+    params["betas"] = np.repeat(params["betas"][:1], 3, axis=0)
+    target = model(**params).vertices
+    # noise makes per-frame betas differ; shared ones must be one vector
+    noisy = target + rng.normal(0, 0.002, target.shape)
+    ids = _subset(model, 400)
+    r = fit.fit_vertices(model, noisy[:, ids], vertex_ids=ids, share_betas=True)
+    betas = r.params["betas"]
+    np.testing.assert_allclose(betas, np.repeat(betas[:1], 3, axis=0), atol=1e-12)
+    exact = fit.fit_vertices(model, target[:, ids], vertex_ids=ids, share_betas=True)
+    np.testing.assert_allclose(exact.params["betas"], params["betas"], atol=1e-4)
+    assert exact.vertex_error.max() < 1e-6
+
+
+def test_fixed_betas_and_no_translation(fake_models):
+    model = _model(fake_models, "smpl")
+    params = _random_params(model, 2, np.random.default_rng(6), transl=False)
+    target = model(**params).vertices
+    ids = _subset(model, 400)
+    fixed = {"betas": params["betas"], "fit_betas": False, "fit_transl": False}
+    r = fit.fit_vertices(model, target[:, ids], vertex_ids=ids, **fixed)
+    np.testing.assert_array_equal(r.params["betas"], params["betas"])
+    np.testing.assert_array_equal(r.params["transl"], np.zeros((2, 3)))
+    assert r.vertex_error.max() < 1e-6
+
+
+def test_zero_weights_ignore_corrupted_vertices(fake_models):
+    model = _model(fake_models, "smpl")
+    params = _random_params(model, 1, np.random.default_rng(7))
+    ids = _subset(model, 400)
+    target = model(**params).vertices[:, ids].copy()
+    weights = np.ones(len(ids))
+    target[:, :40] += 0.2
+    weights[:40] = 0.0
+    r = fit.fit_vertices(model, target, vertex_ids=ids, vertex_weights=weights)
+    err = np.linalg.norm(model(**r.params).vertices[:, ids] - target, axis=-1)[0]
+    assert err[40:].max() < 1e-5 and err[:40].min() > 0.1
+
+
+def test_joint_targets_are_fitted_with_the_vertices(fake_models):
+    model = _model(fake_models, "smpl")
+    params = _random_params(model, 1, np.random.default_rng(8))
+    out = model(**params)
+    ids = _subset(model, 300)
+    r = fit.fit_vertices(model, out.vertices[:, ids], joints=out.joints[:, :24], vertex_ids=ids)
+    assert r.joint_error.max() < 1e-6 and r.vertex_error.max() < 1e-6
+
+
+def test_shape_prior_shrinks_betas(fake_models):
+    model = _model(fake_models, "smpl")
+    params = _random_params(model, 1, np.random.default_rng(9))
+    ids = _subset(model, 300)
+    target = model(**params).vertices[:, ids]
+    free = fit.fit_vertices(model, target, vertex_ids=ids)
+    shrunk = fit.fit_vertices(model, target, vertex_ids=ids, shape_prior=10.0)
+    assert np.linalg.norm(shrunk.params["betas"]) < 0.5 * np.linalg.norm(free.params["betas"])
+
+
+def test_numpy_and_torch_models_give_the_same_fit(fake_models):
+    torch = pytest.importorskip("torch")
+    numpy_model = smplcore.BodyModel(fake_models["root"], model_type="smpl", dtype=np.float64)
+    torch_model = smplcore.create(fake_models["root"], model_type="smpl", dtype=torch.float64)
+    params = _random_params(numpy_model, 2, np.random.default_rng(10))
+    ids = _subset(numpy_model, 300)
+    target = numpy_model(**params).vertices[:, ids]
+    a = fit.fit_vertices(numpy_model, target, vertex_ids=ids)
+    b = fit.fit_vertices(torch_model, torch.as_tensor(target), vertex_ids=ids)
+    for name, value in a.params.items():
+        assert isinstance(b.params[name], torch.Tensor)
+        np.testing.assert_allclose(b.params[name].numpy(), value, atol=1e-9)
+    verts = torch_model(**b.params).vertices.detach().numpy()
+    np.testing.assert_allclose(verts[:, ids], target, atol=1e-6)
+
+
+def test_bad_inputs_name_the_argument(fake_models):
+    model = smplcore.BodyModel(model_type="open")
+    n = model.setup.data.v_template.shape[0]
+    with pytest.raises(ShapeError, match="vertices"):
+        fit.fit_vertices(model, np.zeros((2, n - 1, 3)))
+    bad = np.zeros((1, n, 3))
+    bad[0, 5, 1] = np.nan
+    with pytest.raises(ValueError, match="vertices: 1 non-finite"):
+        fit.fit_vertices(model, bad)
+    with pytest.raises(ValueError, match="vertex_weights"):
+        fit.fit_vertices(model, np.zeros((1, n, 3)), vertex_weights=-np.ones(n))
+    with pytest.raises(ValueError, match="vertex_ids"):
+        fit.fit_vertices(model, np.zeros((1, 2, 3)), vertex_ids=[0, n])
+    with pytest.raises(ShapeError, match="joints"):
+        fit.fit_vertices(model, np.zeros((1, n, 3)), joints=np.zeros((1, 30, 3)))
+    with pytest.raises(TypeError, match="model"):
+        fit.fit_vertices(object(), np.zeros((1, n, 3)))
