@@ -60,7 +60,10 @@ def rows(name: str, value: Any, batch: int, width: int, *, allow_narrower: bool 
     if n != width and not (allow_narrower and n < width):
         hint = ""
         if name == "body_pose" and n == width + 3:
-            hint = f"; {n} = global_orient (3) + body_pose ({width}): pass global_orient=pose[:, :3], body_pose=pose[:, 3:]"
+            hint = (
+                f"; {n} = global_orient (3) + body_pose ({width}): "
+                "pass global_orient=pose[:, :3], body_pose=pose[:, 3:]"
+            )
         elif name.endswith("hand_pose") and n == 45 and width < 45:
             hint = " (PCA coefficients; use_pca=False for 45 axis-angle values)"
         elif name.endswith("hand_pose") and width == 45 and n < 45:
