@@ -248,8 +248,12 @@ def _reference_forward(setup: ModelSetup, source: ArraySource, coeffs: Any, rotm
     if setup.regressor is not None:
         subset = verts[:, source.constant("regressor_ids", like)]
         parts.append(namespace(verts).einsum("kn,bnd->bkd", source.constant("regressor_weights", like), subset))
-    xp = namespace(verts)
-    return verts, (xp.concat(parts, axis=1) if len(parts) > 1 else joints)
+    return verts, _joined(parts)
+
+
+def _joined(parts: list[Any]) -> Any:
+    """(B, J', 3) the skeleton joints and the keypoint groups after them."""
+    return namespace(parts[0]).concat(parts, axis=1) if len(parts) > 1 else parts[0]
 
 
 def _fast_forward(
@@ -270,8 +274,27 @@ def _fast_forward(
         parts += _keypoints(setup, arrays, coeffs, rotmats, transforms, verts, transl, kernel)
     if setup.regressor is not None:
         parts.append(_regressed(setup, arrays, coeffs, rotmats, transforms, verts, transl, kernel))
-    xp = namespace(joints)
-    return verts, (xp.concat(parts, axis=1) if len(parts) > 1 else joints)
+    return verts, _joined(parts)
+
+
+def _posed_subset(
+    setup: ModelSetup,
+    arrays: engine.BodyArrays,
+    coeffs: Any,
+    rotmats: Any,
+    transforms: Any,
+    verts: Any | None,
+    transl: Any | None,
+    kernel: str,
+    ids: Any,
+    key: str,
+) -> Any:
+    """(B, n, 3) untranslated posed vertices ``ids``: read from the mesh when there is one; posed alone for a
+    joints-only call, or under autograd (where a gather from the mesh back-propagates a mesh-sized gradient)."""
+    if verts is None or kernel == "autograd":
+        return engine.posed_vertex_subset(coeffs, rotmats, transforms, arrays, ids, kernel)
+    subset = verts[:, setup.const(key, ids, verts)]
+    return subset if transl is None else subset - transl[:, None]
 
 
 def _keypoints(
@@ -285,28 +308,18 @@ def _keypoints(
     kernel: str,
 ) -> list[Any]:
     """Extra vertex joints, static landmarks and the dynamic contour, in smplx's order (untranslated)."""
-    kp, d = setup.keypoints, setup.data
-    if verts is None or kernel == "autograd":
-        # joints only, or under autograd (where reading them from the mesh would back-propagate a
-        # mesh-sized gradient): pose just the vertices the keypoints use
-        verts = engine.posed_vertex_subset(coeffs, rotmats, transforms, arrays, kp.ids, kernel)
-        prefix = "local_"
-    else:
-        prefix = ""
-        if transl is not None:
-            verts = verts[:, setup.const("kp_rows", kp.ids, verts)] - transl[:, None]
-            prefix = "local_"
-    c = setup.const
+    kp, d, c = setup.keypoints, setup.data, setup.const
+    verts = _posed_subset(setup, arrays, coeffs, rotmats, transforms, verts, transl, kernel, kp.ids, "kp_rows")
     out = []
     if kp.extra.size:
-        out.append(verts[:, c(prefix + "extra", getattr(kp, prefix + "extra"), verts)])
+        out.append(verts[:, c("local_extra", kp.local_extra, verts)])
     if setup.spec.landmarks:
-        corners = c(prefix + "corners", getattr(kp, prefix + "corners"), verts)
+        corners = c("local_corners", kp.local_corners, verts)
         out.append(barycentric_points(verts, corners, c("lmk_bary", d.lmk_bary_coords, verts)))
         if setup.use_face_contour:
             rows_ = contour_rows(rotmats, setup.neck_chain)
             dyn_bary = c("dyn_bary", d.dynamic_lmk_bary_coords, verts)[rows_]
-            contour = c(prefix + "contour_corners", getattr(kp, prefix + "contour_corners"), verts)
+            contour = c("local_contour_corners", kp.local_contour_corners, verts)
             out.append(barycentric_points(verts, contour[rows_], dyn_bary))
     return out
 
@@ -322,12 +335,8 @@ def _regressed(
     kernel: str,
 ) -> Any:
     """(B, K, 3) the ``joint_regressors`` points (untranslated), from just the vertices their rows use."""
-    ids = setup.regressor.vertex_ids
-    if verts is None or kernel == "autograd":
-        subset = engine.posed_vertex_subset(coeffs, rotmats, transforms, arrays, ids, kernel)
-    else:
-        subset = verts[:, setup.const("regressor_ids", ids, verts)]
-        if transl is not None:
-            subset = subset - transl[:, None]
-    weights = setup.const("regressor_weights", setup.regressor.weights, subset)
-    return namespace(subset).einsum("kn,bnd->bkd", weights, subset)
+    reg = setup.regressor
+    subset = _posed_subset(
+        setup, arrays, coeffs, rotmats, transforms, verts, transl, kernel, reg.vertex_ids, "regressor_ids"
+    )
+    return namespace(subset).einsum("kn,bnd->bkd", setup.const("regressor_weights", reg.weights, subset), subset)
