@@ -159,7 +159,7 @@ def test_gradients_of_every_kernel_agree_and_are_finite_at_zero_pose(fake_models
         grads[kernel] = {k: v.grad for k, v in params.items()}
     for name, g in grads["auto"].items():
         assert torch.isfinite(g).all(), name
-        torch.testing.assert_close(g, grads["reference"][name], atol=1e-8, rtol=1e-8)
+        torch.testing.assert_close(g, grads["reference"][name], atol=1e-8, rtol=1e-7)  # float64, other summation order
 
 
 def test_the_reference_kernel_differentiates_the_model_arrays(fake_models):
