@@ -118,6 +118,7 @@ class SMPL(nn.Module):
         self.parent_list = tuple(int(p) for p in data.parents)
         self._register_buffers(setup, dtype)
         self.source = ModuleArrays(self)
+        self.source.fast_arrays()  # built now, as the buffers are (not in the first forward's time and memory)
         for param in self.PARAMETERS:
             if create[param] and (not self.LAYER or param in self.LAYER_PARAMETERS):
                 self._create_parameter(param, initial.get(param), batch_size, dtype)
