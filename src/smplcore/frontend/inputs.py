@@ -19,7 +19,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from smplcore.engine.backend import host_numpy, is_torch, namespace
+import sys
+
+from smplcore.engine.backend import is_torch, namespace
 from smplcore.errors import ShapeError
 
 
@@ -98,13 +100,19 @@ def rotmat_rows(name: str, value: Any, batch: int, joints: int) -> Any:
     return value
 
 
+def _NUMPY_FLOATS() -> tuple:  # noqa: N802
+    torch = sys.modules["torch"]
+    return (torch.float32, torch.float64)
+
+
 def check_finite(params: dict[str, Any]) -> None:
     """A ValueError naming the first parameter holding NaN or inf, and the first such index."""
     for name, value in params.items():
         if value is None or value.ndim == 0 or value.shape[0] == 0:
             continue
-        host = host_numpy(value, max_batch=None) if is_torch(value) else value
-        host = value if host is None else host
+        host = value
+        if is_torch(value) and value.device.type == "cpu" and value.dtype in _NUMPY_FLOATS():
+            host = value.detach().numpy()  # NumPy: a fraction of torch's per-call overhead
         xp = namespace(host)
         finite = xp.isfinite(host)  # (NumPy for CPU tensors: a fraction of torch's per-call overhead)
         if not bool(finite.all()):
