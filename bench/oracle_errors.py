@@ -1,6 +1,6 @@
 """Max |error| (metres) of every path against the oracle (tests/oracle.py), per model: vertices and joints.
 
-    python bench/oracle_errors.py        # fake official files (tests/fakes.py) and the open model, float32
+python bench/oracle_errors.py        # fake official files (tests/fakes.py) and the open model, float32
 """
 
 from __future__ import annotations
@@ -15,13 +15,17 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import fakes  # noqa: E402
+import smplcore  # noqa: E402
 from test_oracle import _expected, _model_args, _params  # noqa: E402
 
-import smplcore  # noqa: E402
-
-MODELS = [("smpl_neutral_pkl", {}), ("smplh_neutral_pkl", {"use_pca": True}),
-          ("smplx_neutral_npz", {"use_face_contour": True}), ("mano_left_pkl", {}),
-          ("flame_neutral_pkl", {"use_face_contour": True}), ("open", {})]
+MODELS = [
+    ("smpl_neutral_pkl", {}),
+    ("smplh_neutral_pkl", {"use_pca": True}),
+    ("smplx_neutral_npz", {"use_face_contour": True}),
+    ("mano_left_pkl", {}),
+    ("flame_neutral_pkl", {"use_face_contour": True}),
+    ("open", {}),
+]
 
 
 def main() -> None:
@@ -41,8 +45,12 @@ def main() -> None:
         t = {k: torch.tensor(v, dtype=torch.float32) for k, v in params.items()}
         with torch.no_grad():
             rows.append(("torch blocked", *(x.numpy() for x in (module(**t).vertices, module(**t).joints))))
-            rows.append(("torch reference", *(x.numpy() for x in (lambda o: (o.vertices, o.joints))(
-                module(kernel="reference", **t)))))
+            rows.append(
+                (
+                    "torch reference",
+                    *(x.numpy() for x in (lambda o: (o.vertices, o.joints))(module(kernel="reference", **t))),
+                )
+            )
             rows.append(("torch joints only", None, module(return_verts=False, **t).joints.numpy()))
             compiled = torch.compile(module, fullgraph=True, backend="aot_eager")
             o = compiled(**t)

@@ -17,9 +17,8 @@ Rotation matrices can be checked to be rotations (``check_rotations``).
 
 from __future__ import annotations
 
-from typing import Any
-
 import sys
+from typing import Any
 
 from smplcore.engine.backend import is_torch, namespace
 from smplcore.errors import ShapeError
