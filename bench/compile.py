@@ -1,51 +1,66 @@
-"""Eager vs torch.compile (Inductor) forward of smplcore, interleaved in one process (medians of 5 rounds).
+"""Eager vs ``torch.compile`` (Inductor) forward of smplcore, interleaved in one process (medians of 5 rounds).
 
 python bench/compile.py      # fake official SMPL and SMPL-X files; a few minutes (compilation included)
 """
 
+from __future__ import annotations
+
 import statistics
 import sys
+import tempfile
 import time
 import warnings
+from pathlib import Path
 
 import torch
 
-warnings.filterwarnings("ignore")
-sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1] / "tests"))
-import fakes
-import smplcore
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+import fakes  # noqa: E402
+import smplcore  # noqa: E402
 
-root = fakes.write_all(__import__("tempfile").mkdtemp())["root"]
-for mt, n in (("smpl", 69), ("smplx", 63)):
-    m = smplcore.create(root, model_type=mt, num_betas=10, use_pca=False, create_transl=False)
-    m.requires_grad_(False)
-    c = torch.compile(m)
-    for B, grad in ((1, False), (64, False), (512, False), (64, True)):
-        x = dict(betas=torch.randn(B, 10), body_pose=torch.randn(B, n) * 0.3, global_orient=torch.randn(B, 3))
-        if grad:
-            x = {k: v.requires_grad_(True) for k, v in x.items()}
 
-        def run(f):
-            if grad:
-                o = f(**x)
-                (o.vertices.sum() + o.joints.sum()).backward()
-            else:
-                with torch.no_grad():
-                    f(**x)
+def _call(model, params, grad):
+    if grad:
+        out = model(**params)
+        (out.vertices.sum() + out.joints.sum()).backward()
+    else:
+        with torch.no_grad():
+            model(**params)
 
-        for f in (m, c):
-            run(f)
-            run(f)
-        tm = {"eager": [], "compiled": []}
-        for r in range(5):
-            for name, f in (("eager", m), ("compiled", c)):
-                k = 20 if B <= 64 else 3
-                t = time.perf_counter()
-                for _ in range(k):
-                    run(f)
-                tm[name].append((time.perf_counter() - t) / k)
-        e, cc = statistics.median(tm["eager"]), statistics.median(tm["compiled"])
-        print(
-            f"{mt} B={B}{' fwd+bwd' if grad else ''}: eager {e * 1e3:.2f} ms, compiled {cc * 1e3:.2f} ms, compiled/eager {cc / e:.2f}",
-            flush=True,
-        )
+
+def main() -> None:
+    warnings.filterwarnings("ignore")
+    root = fakes.write_all(tempfile.mkdtemp())["root"]
+    for model_type, width in (("smpl", 69), ("smplx", 63)):
+        eager = smplcore.create(root, model_type=model_type, num_betas=10, use_pca=False, create_transl=False)
+        eager.requires_grad_(False)
+        compiled = torch.compile(eager)
+        for batch, grad in ((1, False), (64, False), (512, False), (64, True)):
+            params = {
+                "betas": torch.randn(batch, 10),
+                "body_pose": 0.3 * torch.randn(batch, width),
+                "global_orient": torch.randn(batch, 3),
+            }
+            params = {k: v.requires_grad_(grad) for k, v in params.items()}
+            for model in (eager, compiled):  # warm-up (compilation)
+                _call(model, params, grad)
+                _call(model, params, grad)
+            times: dict[str, list[float]] = {"eager": [], "compiled": []}
+            calls = 20 if batch <= 64 else 3
+            for _ in range(5):
+                for name, model in (("eager", eager), ("compiled", compiled)):
+                    t0 = time.perf_counter()
+                    for _ in range(calls):
+                        _call(model, params, grad)
+                    times[name].append((time.perf_counter() - t0) / calls)
+            e, c = statistics.median(times["eager"]), statistics.median(times["compiled"])
+            mode = " fwd+bwd" if grad else ""
+            print(
+                f"{model_type} B={batch}{mode}: eager {e * 1e3:.2f} ms, compiled {c * 1e3:.2f} ms, "
+                f"compiled/eager {c / e:.2f}",
+                flush=True,
+            )
+
+
+if __name__ == "__main__":
+    main()
