@@ -1,0 +1,107 @@
+"""Skinning helpers of the exporters: the top-k weights a rig carries, its linear blend skinning, and how far
+the written skin is from the model (weight truncation; pose correctives a rig cannot express)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from smplcore.export.animation import Animation, Progress
+
+#: Frames posed per step (exporters and metrics alike): bounded memory for long motions.
+FRAMES_PER_CHUNK = 256
+
+__all__ = ["FRAMES_PER_CHUNK", "lbs", "pose_corrective_error", "top_k_weights", "truncation_error"]
+
+
+def top_k_weights(weights: np.ndarray, k: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The ``k`` largest weights of each vertex, renormalised to sum to one.
+
+    Returns
+    -------
+    joints : (V, k) joint indices, largest weight first; unused slots (weight 0) hold joint 0.
+    values : (V, k) float64 weights summing to one per vertex.
+    dropped : (V,) weight mass removed before renormalising.
+    """
+    w = np.clip(np.asarray(weights, dtype=np.float64), 0.0, None)
+    order = np.argsort(-w, axis=1, kind="stable")[:, :k]
+    values = np.take_along_axis(w, order, axis=1)
+    total = w.sum(axis=1)
+    kept = values.sum(axis=1)
+    if np.any(kept <= 0):
+        raise ValueError(f"weights: {int(np.sum(kept <= 0))} vertices have no skinning weight")
+    values = values / kept[:, None]
+    joints = np.where(values > 0, order, 0)
+    return joints.astype(np.int64), values, total - kept
+
+
+def _weight_matrix(joints: np.ndarray, values: np.ndarray, num_joints: int) -> np.ndarray:
+    out = np.zeros((joints.shape[0], num_joints))
+    np.add.at(out, (np.repeat(np.arange(joints.shape[0]), joints.shape[1]), joints.reshape(-1)), values.reshape(-1))
+    return out
+
+
+def lbs(vertices: np.ndarray, matrices: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Linear blend skinning of rest ``vertices`` (V, 3) with (T, J, 3, 4) ``matrices`` and (V, J)
+    ``weights``: (T, V, 3)."""
+    blended = np.einsum("vj,tjab->tvab", weights, matrices)
+    return (blended[..., :3] @ vertices[..., None])[..., 0] + blended[..., 3]
+
+
+def truncation_error(
+    anim: Animation, joints: np.ndarray, values: np.ndarray, progress: Progress | None = None
+) -> dict[str, float | int]:
+    """How far vertices move when skinned with the truncated weights instead of the full ones, over
+    every frame of ``anim``: ``max``, ``mean`` (over all vertices and frames, metres), ``affected``
+    (vertices that lost weight) and ``max_dropped`` (largest weight mass removed)."""
+    full = anim.weights / anim.weights.sum(axis=1, keepdims=True)
+    kept = _weight_matrix(joints, values, anim.num_joints)
+    delta = full - kept
+    affected = np.flatnonzero(np.abs(delta).max(axis=1) > 1e-12)
+    stats = {
+        "max": 0.0,
+        "mean": 0.0,
+        "affected": int(affected.size),
+        "max_dropped": float(np.clip(delta, 0, None).sum(axis=1).max()),
+    }
+    if affected.size == 0:
+        if progress is not None:
+            progress(anim.num_frames)
+        return stats
+    verts = anim.rest_vertices[affected]
+    total, worst = 0.0, 0.0
+    for start in range(0, anim.num_frames, FRAMES_PER_CHUNK):
+        stop = min(start + FRAMES_PER_CHUNK, anim.num_frames)
+        mats = anim.skinning_matrices(slice(start, stop))
+        diff = np.linalg.norm(lbs(verts, mats, delta[affected]), axis=-1)  # translations cancel: rows sum to 0
+        total += float(diff.sum())
+        worst = max(worst, float(diff.max()))
+        if progress is not None:
+            progress(stop - start)
+    stats["max"] = worst
+    stats["mean"] = total / (anim.num_frames * anim.rest_vertices.shape[0])
+    return stats
+
+
+def pose_corrective_error(model: Any, anim: Animation) -> float | None:
+    """Largest vertex displacement the model's pose correctives cause over the frames of ``anim``
+    (None when the model has none): what a rig without them cannot show."""
+    posedirs = getattr(model.setup.data, "posedirs", None)
+    if posedirs is None or not np.any(posedirs):
+        return None
+    posedirs = np.asarray(posedirs, dtype=np.float64)
+    basis = posedirs.reshape(posedirs.shape[0] * 3, -1).T  # (P, V * 3)
+    worst = 0.0
+    weights = anim.weights
+    for start in range(0, anim.num_frames, 64):
+        stop = min(start + 64, anim.num_frames)
+        rot = anim.rotations[start:stop]
+        features = (rot[:, 1:] - np.eye(3)).reshape(stop - start, -1)  # R_j - I of every joint but the root
+        offsets = (features @ basis).reshape(stop - start, -1, 3)
+        world_rot, _ = anim.world_transforms(slice(start, stop))
+        blended = np.einsum("vj,tjab->tvab", weights, world_rot)
+        moved = (blended @ offsets[..., None])[..., 0]
+        worst = max(worst, float(np.linalg.norm(moved, axis=-1).max()))
+    return worst
