@@ -103,3 +103,88 @@ def test_torch_func_transforms_run_the_plain_kernel(fake_models):
     betas = params["betas"].clone().requires_grad_(True)
     loss(betas).backward()
     torch.testing.assert_close(grad, betas.grad, atol=1e-4, rtol=1e-5)
+
+
+def _recorded_ops(model, params):
+    """The smplcore custom operators in the graph that ``torch.compile`` captures for ``model(**params)``."""
+    seen = set()
+
+    def backend(gm, example_inputs):
+        seen.update(str(n.target).removesuffix(".default") for n in gm.graph.nodes if "smplcore" in str(n.target))
+        return gm.forward
+
+    torch._dynamo.reset()
+    torch.compile(model, fullgraph=True, backend=backend)(**params)
+    return seen
+
+
+def test_compiled_forward_calls_the_fast_kernels_as_operators(fake_models):
+    model = _model(fake_models, "smpl")
+    with torch.no_grad():
+        assert _recorded_ops(model, _inputs(model, 2)) == {"smplcore.joint_basis", "smplcore.skin_blocked"}
+    assert _recorded_ops(model, _inputs(model, 2, grad=True)) == {
+        "smplcore.joint_basis",
+        "smplcore.blend",
+        "smplcore.skin",
+    }
+    assert not _recorded_ops(
+        smplcore.create(fake_models["root"], model_type="smpl", kernel="reference"), _inputs(model, 2)
+    )
+
+
+def test_buffer_edits_reach_a_compiled_forward(fake_models):
+    """The operators read the model's current arrays at every call: an edit after compiling counts."""
+    torch._dynamo.reset()
+    model = _model(fake_models, "mano")
+    compiled = torch.compile(model, fullgraph=True, backend="aot_eager")
+    params = _inputs(model, 2)
+    with torch.no_grad():
+        before = compiled(**params).vertices
+        model.shapedirs[:, 0, :] *= -1  # smplx users' MANO left-hand fix
+        after, expected = compiled(**params), model(**params)
+    assert (after.vertices - before).abs().max() > 1e-3
+    assert (after.vertices - expected.vertices).abs().max() < 1e-5
+    assert (after.joints - expected.joints).abs().max() < 1e-5
+
+
+def test_a_copied_model_has_its_own_arrays_in_the_operators(fake_models):
+    import copy
+
+    model = _model(fake_models, "smpl")
+    twin = copy.deepcopy(model)
+    assert twin.source.handle != model.source.handle
+    with torch.no_grad():
+        twin.v_template += 0.5
+        params = _inputs(model, 1)
+        a = torch.compile(twin, fullgraph=True, backend="aot_eager")(**params)
+        b = torch.compile(model, fullgraph=True, backend="aot_eager")(**params)
+    assert torch.allclose(a.vertices - 0.5, b.vertices, atol=1e-5)
+
+
+def test_the_operators_fake_kernels_match_their_real_ones(fake_models):
+    model = _model(fake_models, "smpl")
+    handle = model.source.handle
+    gen = torch.Generator().manual_seed(0)
+    feats = torch.randn(2, 1 + 10 + 207, generator=gen)
+    transforms = torch.randn(2, 24, 12, generator=gen)
+    rest = torch.randn(2, 3, 6890, generator=gen, requires_grad=True)
+    ids = torch.tensor([0, 5, 77])
+    torch.library.opcheck(torch.ops.smplcore.skin_blocked, (handle, None, feats, transforms))
+    torch.library.opcheck(torch.ops.smplcore.skin_blocked, (handle, ids, feats, transforms))
+    torch.library.opcheck(torch.ops.smplcore.blend, (handle, None, feats.requires_grad_()))
+    torch.library.opcheck(torch.ops.smplcore.skin, (handle, None, rest, transforms.requires_grad_()))
+    torch.library.opcheck(torch.ops.smplcore.joint_basis, (handle, feats.detach()))
+
+
+@pytest.mark.parametrize("model_type", ["mano", "smpl"])
+def test_a_compiled_joints_only_call_is_exact(fake_models, model_type):
+    """MANO's joints need no vertex: no mesh is built; SMPL's extra joints are read from the mesh."""
+    model = _model(fake_models, model_type)
+    params = _inputs(model, 2)
+    with torch.no_grad():
+        expected_ops = {"smplcore.joint_basis"} | ({"smplcore.skin_blocked"} if model_type == "smpl" else set())
+        assert _recorded_ops(model, {**params, "return_verts": False}) == expected_ops
+        torch._dynamo.reset()
+        compiled = torch.compile(model, fullgraph=True, backend="aot_eager")
+        a, b = compiled(**params, return_verts=False), model(**params, return_verts=False)
+    assert (a.joints - b.joints).abs().max() < 1e-5

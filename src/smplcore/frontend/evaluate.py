@@ -50,6 +50,14 @@ class ArraySource(Protocol):
 
     def trainable(self) -> bool: ...
 
+    #: The arrays' name in :mod:`smplcore.engine.kernels.ops` (torch modules), or None: then a
+    #: ``torch.compile``-d call runs the reference kernel.
+    handle: int | None
+
+    def latest_arrays(self) -> engine.BodyArrays:
+        """The fast arrays as last built (their tree and layout), without checking for edits."""
+        ...
+
 
 @dataclass(frozen=True)
 class Evaluation:
@@ -131,6 +139,9 @@ def evaluate(
         inputs.check_finite(given)
     zeros = source.constant("zero", ref)  # (1, 1) in the model's dtype and device
     chosen = select(kernel, zeros, gradients=_records(given.values()), trainable_model=source.trainable())
+    operators = chosen != "reference" and traced()  # under torch.compile: the kernels as custom operators
+    if operators and source.handle is None:  # arrays the operators do not know: the plain pass (same numbers)
+        chosen, operators = "reference", False
 
     def coefficients(name: str, width: int) -> Any:
         value = given.get(name)
@@ -170,17 +181,19 @@ def evaluate(
         if setup.has_pose_mean:
             full_pose = full_pose + source.constant("pose_mean", zeros)
         rotvecs = full_pose.reshape(batch, -1, 3)
-        rotmats = reference.rodrigues(rotvecs) if chosen == "reference" else _rodrigues(rotvecs)
+        rotmats = reference.rodrigues(rotvecs) if chosen == "reference" or operators else _rodrigues(rotvecs)
 
     transl = given.get("transl")
     transl = None if transl is None else rows("transl", transl, batch, 3)
     if chosen == "reference":
         verts, joints = _reference_forward(setup, source, coeffs, rotmats, zeros)
+    elif operators:
+        verts, joints = _operator_forward(setup, source, coeffs, rotmats, vertices, chosen == "autograd", zeros)
     else:
         verts, joints = _fast_forward(setup, source.fast_arrays(), coeffs, rotmats, vertices, transl, chosen)
     if transl is not None:
         shifted = joints + transl[:, None]
-        if chosen == "reference":
+        if (chosen == "reference" or operators) and verts is not None:
             verts = verts + transl[:, None]
     else:
         shifted = joints
@@ -236,6 +249,28 @@ def _reference_forward(setup: ModelSetup, source: ArraySource, coeffs: Any, rotm
     verts, joints, _ = reference.forward(
         p.v_template, p.shapedirs, p.posedirs, p.J_regressor, p.parents, p.weights, coeffs, rotmats
     )
+    return verts, _with_mesh_keypoints(setup, source, joints, verts, rotmats, like)
+
+
+def _operator_forward(
+    setup: ModelSetup, source: ArraySource, coeffs: Any, rotmats: Any, vertices: bool, gradients: bool, like: Any
+) -> tuple:
+    """Vertices (untranslated; None when not asked for and no keypoint needs them) and all output joints by
+    the fast kernels as torch custom operators (:mod:`smplcore.engine.kernels.ops`), under ``torch.compile``."""
+    from smplcore.engine.kernels import ops
+
+    mesh = vertices or setup.keypoints.extra.size or setup.spec.landmarks or setup.regressor is not None
+    arrays = source.latest_arrays()
+    if not mesh:
+        return None, ops.joints(source.handle, arrays, coeffs, rotmats)
+    verts, joints = ops.forward(source.handle, arrays, coeffs, rotmats, translation=None, gradients=gradients)
+    return verts, _with_mesh_keypoints(setup, source, joints, verts, rotmats, like)
+
+
+def _with_mesh_keypoints(
+    setup: ModelSetup, source: ArraySource, joints: Any, verts: Any, rotmats: Any, like: Any
+) -> Any:
+    """(B, J', 3) the skeleton ``joints`` and the keypoints read from the (untranslated) mesh ``verts``."""
     parts = [joints]
     if setup.keypoints.extra.size:
         parts.append(verts[:, source.constant("extra_ids", like)])
@@ -248,7 +283,7 @@ def _reference_forward(setup: ModelSetup, source: ArraySource, coeffs: Any, rotm
     if setup.regressor is not None:
         subset = verts[:, source.constant("regressor_ids", like)]
         parts.append(namespace(verts).einsum("kn,bnd->bkd", source.constant("regressor_weights", like), subset))
-    return verts, _joined(parts)
+    return _joined(parts)
 
 
 def _joined(parts: list[Any]) -> Any:

@@ -61,6 +61,11 @@ class SetupArrays:
         self._plain: PlainArrays | None = None
         self._constants: dict[str, Any] = {}
 
+    handle = None  # not known to the custom operators (never compiled)
+
+    def latest_arrays(self) -> engine.BodyArrays:
+        return self.fast_arrays()
+
     def fast_arrays(self) -> engine.BodyArrays:
         if self._fast is None:
             self._fast = self.setup.body_arrays(self.convert)

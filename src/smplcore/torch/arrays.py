@@ -15,6 +15,7 @@ import numpy as np
 import torch
 
 from smplcore.engine import body as engine
+from smplcore.engine.kernels import ops
 from smplcore.frontend.evaluate import PlainArrays
 
 # Buffers the engine's arrays are derived from (expr_dirs only where the model has one).
@@ -32,6 +33,25 @@ class ModuleArrays:
         self.module = module
         self._key: tuple | None = None
         self._fast: engine.BodyArrays | None = None
+        self.handle = ops.register(self)  # names these arrays in the custom operators (torch.compile)
+
+    def __getstate__(self) -> dict:
+        return {k: v for k, v in self.__dict__.items() if k != "handle"}
+
+    def __setstate__(self, state: dict) -> None:  # a copy (copy.deepcopy, pickle) gets its own handle
+        self.__dict__.update(state)
+        self.handle = ops.register(self)
+
+    def current(self) -> engine.BodyArrays:
+        return self.fast_arrays()
+
+    def last(self) -> engine.BodyArrays:
+        return self._fast if self._fast is not None else self.fast_arrays()
+
+    def latest_arrays(self) -> engine.BodyArrays:
+        """The arrays as last built, without checking the buffers (what does not change with an edit:
+        the tree, which bases exist, the shapes)."""
+        return self.last()
 
     def _sources(self) -> list[torch.Tensor]:
         return [getattr(self.module, n) for n in SOURCE_BUFFERS if getattr(self.module, n, None) is not None]

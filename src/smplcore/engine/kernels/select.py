@@ -31,6 +31,18 @@ def traced() -> bool:
     return bool(functorch_active is not None and functorch_active())
 
 
+def compiling_only() -> bool:
+    """Whether ``torch.compile`` traces the call, outside ``torch.export`` and ``torch.func``: the fast
+    kernels then run as custom operators (:mod:`smplcore.engine.kernels.ops`)."""
+    torch = sys.modules.get("torch")
+    if torch is None or not torch.compiler.is_compiling():
+        return False
+    if getattr(torch.compiler, "is_exporting", lambda: False)():
+        return False
+    functorch_active = getattr(torch._C, "_are_functorch_transforms_active", None)
+    return not (functorch_active is not None and functorch_active())
+
+
 def select(kernel: str, like: Any, *, gradients: bool, trainable_model: bool = False) -> str:
     """The kernel to run.
 
@@ -45,7 +57,9 @@ def select(kernel: str, like: Any, *, gradients: bool, trainable_model: bool = F
     A forced kernel that cannot compute what was asked raises instead of running another one.
     """
     check_kernel(kernel)
-    plain_only = is_torch(like) and (traced() or like.device.type != "cpu" or not _cpu_float(like))
+    plain_only = is_torch(like) and (
+        (traced() and not compiling_only()) or like.device.type != "cpu" or not _cpu_float(like)
+    )
     if kernel == "auto":
         if plain_only or trainable_model:
             return "reference"
@@ -59,8 +73,8 @@ def select(kernel: str, like: Any, *, gradients: bool, trainable_model: bool = F
         raise ValueError("kernel='autograd' is for torch tensors; NumPy inputs run kernel='blocked' or 'reference'")
     if kernel in ("blocked", "autograd") and plain_only:
         raise ValueError(
-            f"kernel={kernel!r} runs on CPU float32/float64 tensors outside torch.compile, "
-            f"torch.export and torch.func; this call needs kernel='reference' (or 'auto')"
+            f"kernel={kernel!r} runs on CPU float32/float64 tensors outside torch.export and "
+            f"torch.func; this call needs kernel='reference' (or 'auto')"
         )
     if kernel != "reference" and trainable_model:
         raise ValueError(
