@@ -187,7 +187,7 @@ class ExportReport:
             f"wrote {self.path} ({self.format}, {human}): {self.num_frames} frame(s) at {self.fps:g} fps, "
             f"{self.num_joints} joints" + (f", {self.num_vertices} vertices" if self.num_vertices else "")
         ]
-        if self.top4_max_error is not None:
+        if self.top4_max_error is not None and self.top4_mean_error is not None:
             lines.append(
                 f"skin: top {self.influences} of up to {self.max_model_influences} weights per vertex, "
                 "renormalised; "
