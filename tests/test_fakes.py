@@ -1,4 +1,4 @@
-"""The fake official files of ``tests/fakes.py`` are valid: smplx 0.1.28 loads them and produces
+"""The fake official files of ``tests/fakes/`` are valid: smplx 0.1.28 loads them and produces
 sensible meshes, and their structure (keys, shapes, dtypes, pickle format) is the official one."""
 
 from __future__ import annotations

@@ -148,20 +148,22 @@ def run_demo(
     else:  # SMPL+H / SMPL-X: the first 21 body joints; SMPL's hand joints have no counterpart
         params["body_pose"] = body[:, : 21 * 3]
     out = model(**params)
+    vertices = out.vertices
+    assert vertices is not None  # return_verts is on
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     uv = model_uv(model)
     image = resolve_texture(texture) if uv is not None else None
     textured = {"uv": uv, "texture": image} if image is not None else {}
-    obj_uv = {"uv": uv, "texture": image} if mesh_format == "obj" and uv is not None else {}
-    mesh_path = save_mesh(out_dir / f"body.{mesh_format}", out.vertices[0], model.faces, **obj_uv)
+    obj_uv: dict[str, Any] = {"uv": uv, "texture": image} if mesh_format == "obj" and uv is not None else {}
+    mesh_path = save_mesh(out_dir / f"body.{mesh_format}", vertices[0], model.faces, **obj_uv)
     texture_path = out_dir / "body_texture.png" if obj_uv and image is not None else None
     image_path = None
     if render:
         from smplcore.render import render_to_png
 
         image_path = render_to_png(
-            _spread_on_floor(out.vertices),
+            _spread_on_floor(vertices),
             model.faces,
             out_dir / "body.png",
             width=width,
@@ -172,7 +174,7 @@ def run_demo(
     return DemoResult(
         Path(mesh_path),
         None if image_path is None else Path(image_path),
-        out.vertices,
+        vertices,
         out.joints,
         model.faces,
         texture_path,

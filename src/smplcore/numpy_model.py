@@ -105,7 +105,7 @@ class BodyModel:
     def uv(self) -> tuple[np.ndarray, np.ndarray] | None:
         """``(vt, ft)``: (T, 2) UV coordinates and (F, 3) UV faces, or None when the model has no UV map."""
         d = self.setup.data
-        return (d.vt, d.ft) if d.has_uv else None
+        return (d.vt, d.ft) if d.vt is not None and d.ft is not None else None  # d.has_uv
 
     @property
     def model_type(self) -> str:

@@ -215,7 +215,7 @@ def forward(
     """
     host = [host_numpy(coeffs), host_numpy(rotmats), host_numpy(arrays.joint_basis, max_batch=None)]
     if is_torch(rotmats) and all(a is not None for a in host):  # small batch: per-joint math is faster in NumPy
-        posed_joints, transforms = (from_numpy(a) for a in pose_skeleton(*host, arrays.tree))
+        posed_joints, transforms = (from_numpy(a) for a in pose_skeleton(host[0], host[1], host[2], arrays.tree))
     else:
         posed_joints, transforms = pose_skeleton(coeffs, rotmats, arrays.joint_basis, arrays.tree)
     if not vertices:

@@ -81,12 +81,12 @@ def kinematic_chain(rotmats: Any, joints: Any, parents: Sequence[int]) -> tuple[
     """
     xp = namespace(rotmats)
     bottom = xp.concat([xp.zeros_like(joints[:, :1]), xp.ones_like(joints[:, :1, :1])], axis=2)  # (B, 1, 4): 0 0 0 1
-    world = []
+    chain: list[Any] = []
     for j, p in enumerate(parents):
         offset = joints[:, j] if p < 0 else joints[:, j] - joints[:, p]
         local = xp.concat([xp.concat([rotmats[:, j], offset[:, :, None]], axis=2), bottom], axis=1)
-        world.append(local if p < 0 else world[p] @ local)
-    world = xp.stack(world, axis=1)  # (B, J, 4, 4)
+        chain.append(local if p < 0 else chain[p] @ local)
+    world = xp.stack(chain, axis=1)  # (B, J, 4, 4)
     rest = xp.concat([joints, xp.zeros_like(joints[..., :1])], axis=-1)[..., None]  # (B, J, 4, 1)
     shift = world @ rest  # G_j [J_j, 0]
     zeros = xp.zeros_like(world[..., :3])

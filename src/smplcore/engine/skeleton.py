@@ -33,7 +33,7 @@ class KinematicTree:
     _index_cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @classmethod
-    def from_parents(cls, parents: Sequence[int]) -> KinematicTree:
+    def from_parents(cls, parents: Sequence[int] | np.ndarray) -> KinematicTree:
         parents = tuple(int(p) for p in parents)
         if not parents or parents[0] != -1:
             raise ValueError("parents: the first joint must be the root (parent -1)")

@@ -16,8 +16,6 @@ Rest-pose semantics (what a rig made from this reproduces):
 
 from __future__ import annotations
 
-import json
-import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -40,7 +38,16 @@ __all__ = [
 
 Progress = Callable[[int], Any]  # called with the number of frames just processed (e.g. tqdm.update)
 
-# the skinning helpers live in skin_metrics (re-exported here, where exporters import them)
+# the input readers live in inputs and the skinning helpers in skin_metrics (re-exported here, where
+# exporters import them)
+from smplcore.export.inputs import (  # noqa: E402
+    _fit_width,
+    _frames_of,
+    _motion_input,
+    _notify,
+    _single_shape,
+    load_input,
+)
 from smplcore.export.skin_metrics import (  # noqa: E402,F401
     FRAMES_PER_CHUNK,
     lbs,
@@ -136,9 +143,12 @@ class Animation:
 
     def skinning_matrices(self, frames: slice | np.ndarray | None = None) -> np.ndarray:
         """(T', J, 3, 4) transforms taking a rest-pose point near joint j to its posed position."""
+        from smplcore.engine import skinning_transforms
+
         world_rot, world_pos = self.world_transforms(frames)
-        trans = world_pos - (world_rot @ self.rest_joints[..., None])[..., 0]
-        return np.concatenate([world_rot, trans[..., None]], axis=-1)
+        rest = np.broadcast_to(self.rest_joints, world_pos.shape)
+        flat = skinning_transforms(world_rot, world_pos, rest)  # (T', J, 12): rotation rows, translation
+        return np.concatenate([flat[..., :9].reshape(world_rot.shape), flat[..., 9:, None]], axis=-1)
 
 
 @dataclass
@@ -177,7 +187,7 @@ class ExportReport:
             f"wrote {self.path} ({self.format}, {human}): {self.num_frames} frame(s) at {self.fps:g} fps, "
             f"{self.num_joints} joints" + (f", {self.num_vertices} vertices" if self.num_vertices else "")
         ]
-        if self.top4_max_error is not None:
+        if self.top4_max_error is not None and self.top4_mean_error is not None:
             lines.append(
                 f"skin: top {self.influences} of up to {self.max_model_influences} weights per vertex, "
                 "renormalised; "
@@ -199,135 +209,6 @@ class ExportReport:
         return "\n".join(lines)
 
 
-# --------------------------------------------------------------------------------------------------
-# Input
-
-
-def _text(value: Any) -> str:
-    value = np.asarray(value)
-    item = value.item() if value.size == 1 else value
-    return item.decode("utf-8", "replace") if isinstance(item, bytes) else str(item)
-
-
-def load_input(path: str | Path) -> Any:
-    """Read an export input file: an AMASS-style motion ``.npz`` (has ``poses``) as a
-    :class:`~smplcore.motion.Motion`, or a parameter set (``.npz`` or ``.json`` whose keys are model
-    keyword arguments -- ``betas``, ``global_orient``, ``body_pose``, ``transl``, ... -- and
-    optionally ``fps``) as a dict of arrays. No pickles are read."""
-    from smplcore.motion import load_motion
-
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such file")
-    suffix = path.suffix.lower()
-    if suffix == ".json":
-        with path.open(encoding="utf-8") as fh:
-            raw = json.load(fh)
-        if not isinstance(raw, dict):
-            raise ValueError(f"{path}: expected a JSON object of parameter arrays")
-        if "poses" in raw:
-            return _motion_from_arrays(raw, str(path))
-        return {k: np.asarray(v, dtype=np.float64) if k not in ("gender", "model_type") else v for k, v in raw.items()}
-    if suffix == ".npz":
-        with np.load(path, allow_pickle=False) as data:
-            keys = set(data.files)
-            if "poses" in keys:
-                return load_motion(path)
-            return {k: (data[k] if data[k].dtype.kind in "fiub" else _text(data[k])) for k in keys}
-    raise ValueError(
-        f"{path}: unsupported input {path.suffix!r}; expected an AMASS-style .npz motion or a "
-        "parameter set (.npz or .json)"
-    )
-
-
-def _motion_from_arrays(arrays: Mapping[str, Any], source: str = "<memory>", fps: float | None = None) -> Any:
-    from smplcore.motion import POSE_WIDTH, Motion
-
-    poses = np.asarray(arrays["poses"], dtype=np.float64)
-    if poses.ndim == 1:
-        poses = poses[None]
-    by_width = {v: k for k, v in POSE_WIDTH.items()}
-    model_type = (
-        _text(arrays["surface_model_type"]).lower() if "surface_model_type" in arrays else by_width.get(poses.shape[1])
-    )
-    if model_type is None:
-        raise ShapeError(
-            f"poses: cannot tell the body model from {poses.shape[1]} values per frame "
-            f"(expected one of {sorted(by_width)})"
-        )
-    trans = np.asarray(arrays.get("trans", np.zeros((poses.shape[0], 3))), dtype=np.float64).reshape(-1, 3)
-    rate = fps or next(
-        (
-            float(np.asarray(arrays[k]).reshape(-1)[0])
-            for k in ("mocap_framerate", "mocap_frame_rate", "fps", "frame_rate")
-            if k in arrays
-        ),
-        DEFAULT_FPS,
-    )
-    expression = arrays.get("expression")
-    return Motion(
-        poses=poses,
-        trans=trans,
-        betas=np.asarray(arrays.get("betas", np.zeros(10)), np.float64).reshape(-1),
-        fps=rate,
-        model_type=model_type,
-        gender=_text(arrays.get("gender", "neutral")),
-        expression=None if expression is None else np.asarray(expression, np.float64),
-        source=source,
-    )
-
-
-def _notify(notes: list[str], message: str) -> None:
-    notes.append(message)
-    warnings.warn(message, stacklevel=3)
-
-
-def _fit_width(name: str, value: np.ndarray, width: int, notes: list[str]) -> np.ndarray:
-    """Coefficients (..., n) padded with zeros or truncated (with a warning) to ``width``."""
-    n = value.shape[-1]
-    if n > width:
-        dropped = value[..., width:]
-        if np.any(dropped != 0):
-            _notify(
-                notes,
-                f"{name}: the input has {n} coefficients but the model takes {width}; dropping the "
-                f"last {n - width} (largest |value| {np.abs(dropped).max():.3g}) -- create the model with "
-                f"num_{'betas' if name == 'betas' else 'expression_coeffs'}={n} to keep them",
-            )
-        return value[..., :width]
-    if n < width:
-        pad = np.zeros(value.shape[:-1] + (width - n,), dtype=value.dtype)
-        return np.concatenate([value, pad], axis=-1)
-    return value
-
-
-def _single_shape(name: str, value: Any, width: int, notes: list[str]) -> np.ndarray:
-    """One coefficient vector from (S,), (1, S) or (T, S) with identical rows."""
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.ndim == 1:
-        arr = arr[None]
-    if arr.ndim != 2:
-        raise ShapeError(f"{name}: expected shape (S,) or (1, S), got {arr.shape}")
-    if arr.shape[0] > 1 and not np.allclose(arr, arr[:1], rtol=0, atol=1e-9):
-        raise ShapeError(
-            f"{name}: a rigged export has one body shape, but the {arr.shape[0]} rows of {name} "
-            "differ; export one shape at a time"
-        )
-    return _fit_width(name, arr[0], width, notes)
-
-
-def _frames_of(params: Mapping[str, np.ndarray]) -> int:
-    sizes = {k: v.shape[0] for k, v in params.items() if v.ndim > 1}
-    frames = max(sizes.values(), default=1)
-    for k, n in sizes.items():
-        if n not in (1, frames):
-            raise ShapeError(
-                f"{k}: {n} frames do not match the {frames} frames of the other parameters "
-                f"(sizes: {sizes}); give 1 or {frames}"
-            )
-    return frames
-
-
 def prepare_animation(
     model: Any, source: Any, *, fps: float | None = None, progress: Progress | None = None
 ) -> Animation:
@@ -344,16 +225,17 @@ def prepare_animation(
         PCA hands and the model's mean hand pose apply as in ``model(**params)``. Motion poses are full
         axis-angle poses, hands included (never PCA), plus the model's mean hand pose -- AMASS hand poses
         are absolute, so create the model with ``flat_hand_mean=True`` for them.
-    fps : frame rate; overrides the motion's (default: the motion's, or 30 for parameter sets).
+    fps : frame rate; overrides the motion's (default: the motion's, or 30 for parameter sets). A motion
+        that states no frame rate needs it (:class:`~smplcore.errors.ModelFileError` otherwise).
     progress : called with the number of frames processed, e.g. ``tqdm(total=T).update``.
     """
     from smplcore.motion import Motion
 
     notes: list[str] = []
     if isinstance(source, (str, Path)):
-        source = load_input(source)
+        source = load_input(source, fps=fps)
     if isinstance(source, Mapping) and "poses" in source:
-        source = _motion_from_arrays(source, fps=fps)
+        source = _motion_input(source, fps=fps)
     if isinstance(source, Motion):
         rotations, transl, betas, expression, rate, origin = _from_motion(model, source, notes, progress)
     elif isinstance(source, Mapping):

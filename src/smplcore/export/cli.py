@@ -59,7 +59,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="shape coefficients to use (default: as many as the input has)",
     )
     parser.add_argument(
-        "--fps", type=float, default=None, help="frame rate (default: the motion's, 30 for parameter sets)"
+        "--fps",
+        type=float,
+        default=None,
+        help="frame rate (default: the motion's, 30 for parameter sets; required for a motion that states none)",
     )
     parser.add_argument(
         "--frames",
@@ -198,7 +201,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"-o/--output: unsupported suffix {out.suffix!r}; expected one of {', '.join(FORMATS)}")
     if args.texture is not None and suffix not in (".obj", ".glb"):
         raise ValueError(f"--texture: textures are written to .obj and .glb files, not {out.suffix!r}")
-    source = load_input(args.input)
+    source = load_input(args.input, fps=args.fps)  # the rate of a motion that states none
     frames = _frame_slice(args.frames)
     if frames is not None:
         source = (

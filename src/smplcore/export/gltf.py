@@ -342,9 +342,10 @@ def save_glb(
     add_channel(0, "translation", build.accessor(anim.root_positions, _FLOAT, name="root_translation"))
     for j in range(num_joints):
         add_channel(j, "rotation", build.accessor(quats[:, j], _FLOAT, name=f"rotation_{anim.joint_names[j]}"))
-    if expression_slot is not None and anim.expression_varies:
+    expression, base = anim.expression, anim.base_expression  # both set for a model with expressions
+    if expression_slot is not None and expression is not None and base is not None and anim.expression_varies:
         weights = np.zeros((frames, len(targets)))
-        weights[:, expression_slot:] = anim.expression - anim.base_expression
+        weights[:, expression_slot:] = expression - base
         add_channel(mesh_node, "weights", build.accessor(weights.reshape(-1), _FLOAT, name="morph_weights"))
     animation_name = name or (Path(anim.source).stem if anim.source and not anim.source.startswith("<") else "motion")
     gltf.animations.append(pygltflib.Animation(name=animation_name, samplers=samplers, channels=channels))
@@ -360,7 +361,7 @@ def save_glb(
         max_model_influences=int((anim.weights > 0).sum(axis=1).max()),
         top4_max_error=err["max"],
         top4_mean_error=err["mean"],
-        top4_vertices_affected=err["affected"],
+        top4_vertices_affected=int(err["affected"]),
         top4_max_dropped_weight=err["max_dropped"],
         pose_corrective_max=corrective,
         morph_targets=target_names,

@@ -7,6 +7,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from smplcore.engine import pose_features, skin
+
 if TYPE_CHECKING:
     from smplcore.export.animation import Animation, Progress
 
@@ -43,11 +45,20 @@ def _weight_matrix(joints: np.ndarray, values: np.ndarray, num_joints: int) -> n
     return out
 
 
+def _engine_transforms(matrices: np.ndarray) -> np.ndarray:
+    """(T, J, 3, 4) matrices as the engine's (T, J, 12) skinning transforms (rotation rows, then translation)."""
+    frames, joints = matrices.shape[:2]
+    return np.concatenate([matrices[..., :3].reshape(frames, joints, 9), matrices[..., 3]], axis=-1)
+
+
 def lbs(vertices: np.ndarray, matrices: np.ndarray, weights: np.ndarray) -> np.ndarray:
     """Linear blend skinning of rest ``vertices`` (V, 3) with (T, J, 3, 4) ``matrices`` and (V, J)
-    ``weights``: (T, V, 3)."""
-    blended = np.einsum("vj,tjab->tvab", weights, matrices)
-    return (blended[..., :3] @ vertices[..., None])[..., 0] + blended[..., 3]
+    ``weights``: (T, V, 3). The engine's skinning (:func:`smplcore.engine.skin`), one rest mesh for
+    every frame."""
+    matrices = np.asarray(matrices)
+    vertices = np.asarray(vertices, dtype=matrices.dtype)
+    rest = np.broadcast_to(vertices.T, (matrices.shape[0],) + vertices.T.shape)  # (T, 3, V), no copy
+    return skin(rest, _engine_transforms(matrices), np.asarray(weights, dtype=matrices.dtype).T)
 
 
 def truncation_error(
@@ -94,14 +105,15 @@ def pose_corrective_error(model: Any, anim: Animation) -> float | None:
     posedirs = np.asarray(posedirs, dtype=np.float64)
     basis = posedirs.reshape(posedirs.shape[0] * 3, -1).T  # (P, V * 3)
     worst = 0.0
-    weights = anim.weights
+    weights_t = np.ascontiguousarray(anim.weights.T)
     for start in range(0, anim.num_frames, 64):
         stop = min(start + 64, anim.num_frames)
-        rot = anim.rotations[start:stop]
-        features = (rot[:, 1:] - np.eye(3)).reshape(stop - start, -1)  # R_j - I of every joint but the root
-        offsets = (features @ basis).reshape(stop - start, -1, 3)
+        offsets = (pose_features(anim.rotations[start:stop]) @ basis).reshape(stop - start, -1, 3)
         world_rot, _ = anim.world_transforms(slice(start, stop))
-        blended = np.einsum("vj,tjab->tvab", weights, world_rot)
-        moved = (blended @ offsets[..., None])[..., 0]
+        # the offsets are directions: skinned by the joints' world rotations alone (no translation)
+        rotation_only = np.concatenate(
+            [world_rot.reshape(stop - start, -1, 9), np.zeros(world_rot.shape[:2] + (3,))], -1
+        )
+        moved = skin(np.swapaxes(offsets, 1, 2), rotation_only, weights_t)
         worst = max(worst, float(np.linalg.norm(moved, axis=-1).max()))
     return worst

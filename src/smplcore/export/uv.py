@@ -124,8 +124,8 @@ def load_texture(path: str | os.PathLike) -> np.ndarray:
         raise RuntimeError(f"reading a texture needs Pillow ({exc}); install it with `pip install pillow`") from exc
     try:
         with Image.open(path) as img:
-            img = img.convert("RGBA" if img.mode in ("RGBA", "LA", "P") and "A" in img.getbands() else "RGB")
-            return np.asarray(img).copy()
+            mode = "RGBA" if img.mode in ("RGBA", "LA", "P") and "A" in img.getbands() else "RGB"
+            return np.asarray(img.convert(mode)).copy()
     except OSError as exc:
         raise ValueError(f"texture: {str(path)!r} is not an image Pillow can read ({exc})") from None
 

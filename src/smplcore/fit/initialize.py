@@ -104,6 +104,7 @@ def shape_and_translation(body: FitBody, obj: Objective, state: State) -> State:
     batch, q = len(state.pose), body.num_pose
     lin_obj = Objective(**{**obj.__dict__, "pose_prior": None, "pose_mean": None})
     hess, grad, _ = normal_equations(body, lin_obj, state)
+    assert hess is not None  # asked for
     keep = np.arange(q, hess.shape[1])
     hess, grad = hess[:, keep][:, :, keep], grad[:, keep]
     cols = np.flatnonzero(obj.free_coeffs)

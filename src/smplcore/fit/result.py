@@ -96,8 +96,8 @@ def state_to_params(body: FitBody, model: Any, state: State) -> dict[str, Any]:
         dtype = getattr(model, "dtype", torch.float32)
         device = model.v_template.device if hasattr(model, "v_template") else "cpu"
         return {k: torch.as_tensor(np.ascontiguousarray(v), dtype=dtype, device=device) for k, v in params.items()}
-    dtype = getattr(model, "dtype", np.float32)
-    return {k: np.ascontiguousarray(v, dtype=dtype) for k, v in params.items()}
+    np_dtype: Any = getattr(model, "dtype", np.float32)
+    return {k: np.ascontiguousarray(v, dtype=np_dtype) for k, v in params.items()}
 
 
 def params_to_state(body: FitBody, params: dict[str, Any], batch: int) -> State:

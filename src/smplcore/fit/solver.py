@@ -125,6 +125,7 @@ def normal_equations(
     for s in range(0, batch, chunk):
         e = min(batch, s + chunk)
         lin = pose_points(body, obj.points, theta[s:e], state.coeffs[s:e], state.transl[s:e], jacobian=True)
+        assert lin.jacobian is not None  # asked for
         jac = lin.jacobian.reshape(e - s, 3 * n, width)
         sw = np.sqrt(np.repeat(obj.weights[s:e], 3, axis=1))
         res = (lin.points - obj.targets[s:e]).reshape(e - s, 3 * n) * sw
@@ -150,13 +151,9 @@ def normal_equations(
         x[:, : body.num_pose] -= obj.pose_mean
     x = x[:, cols]
     prior = _prior_diagonal(obj, cols, body.num_pose, body.num_coeffs, batch)
-    if hessian:
-        hess = hess + prior[:, :, None] * np.eye(len(cols))
-    else:
-        hess = None
     grad = grad + prior * x
     cost = cost + _prior_cost(obj, state)
-    return hess, grad, cost
+    return (hess + prior[:, :, None] * np.eye(len(cols)) if hessian else None), grad, cost
 
 
 def _step(hess: np.ndarray, grad: np.ndarray, damping: np.ndarray, shared_cols: np.ndarray) -> np.ndarray:
@@ -230,7 +227,7 @@ def levenberg_marquardt(
     damping = np.full(batch, 1e-4)
     converged = np.zeros(batch, bool)
     scale = np.maximum(obj.weights.sum(1), 1e-300)
-    cost = None
+    cost: np.ndarray | None = None
     iterations = 0
     for _ in range(max_iter):
         iterations += 1
@@ -240,7 +237,9 @@ def levenberg_marquardt(
             _, grad, cost = normal_equations(body, obj, state, hessian=False)
             hess, _, _ = normal_equations(body, hessian_obj, state)
             ratio = obj.weights.sum(1) / np.maximum(hessian_obj.weights.sum(1), 1e-300)
+            assert hess is not None  # asked for
             hess = _rescaled(hess, ratio, obj, cols, q, body.num_coeffs)
+        assert hess is not None  # asked for
         active = ~converged
         for _ in range(8):  # raise the damping where a step does not decrease the cost
             step = _step(hess, grad, damping, shared_cols)
@@ -270,4 +269,6 @@ def levenberg_marquardt(
         converged |= done & active
         if converged.all():
             break
+    if cost is None:  # no iteration ran (max_iter=0): the cost of the start
+        cost = residual_cost(body, obj, state)
     return state, cost, converged, iterations

@@ -177,7 +177,7 @@ def fit_vertices(
     if verts.ndim != 3 or verts.shape[1:] != (len(ids), 3):
         raise ShapeError(f"vertices: expected (B, {len(ids)}, 3), got {tuple(np.shape(vertices))}")
     batch = verts.shape[0]
-    point_ids, targets = [ids], [verts]
+    id_parts, target_parts = [ids], [verts]
     w = [_weights(vertex_weights, "vertex_weights", batch, len(ids))]
     n_joints = 0
     if joints is not None:
@@ -189,10 +189,10 @@ def fit_vertices(
                 f"joints: expected ({batch}, n, 3) with n <= {body.num_joints} skeleton joints, got {tuple(jt.shape)}"
             )
         n_joints = jt.shape[1]
-        point_ids.append(body.num_vertices + np.arange(n_joints))
-        targets.append(jt)
+        id_parts.append(body.num_vertices + np.arange(n_joints))
+        target_parts.append(jt)
         w.append(_weights(joint_weights, "joint_weights", batch, n_joints))
-    point_ids, targets, weights = np.concatenate(point_ids), np.concatenate(targets, 1), np.concatenate(w, 1)
+    point_ids, targets, weights = np.concatenate(id_parts), np.concatenate(target_parts, 1), np.concatenate(w, 1)
     if len(point_ids) < 3 or not np.all(weights.sum(1) > 0):
         raise ValueError("vertices: need at least 3 points with positive weight per body")
     start = params_to_state(body, {**(init or {}), **({} if betas is None else {"betas": betas})}, batch)

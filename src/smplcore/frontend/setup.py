@@ -79,7 +79,8 @@ class ModelSetup:
     extra_joint_names: list[str]
     use_face_contour: bool
     neck_chain: list[int] = field(default_factory=list)
-    keypoints: Keypoints | None = None
+    # built in __post_init__ when not given, so always set afterwards
+    keypoints: Keypoints = None  # type: ignore[assignment]
     regressor: Any = None  # smplcore.keypoints.Regressor of the joint_regressors option, or None
     _cache: dict = field(default_factory=dict, repr=False)
 
@@ -88,11 +89,13 @@ class ModelSetup:
         """Whether a mean pose is added to the full pose (decided once, at construction)."""
         return self._cache["has_pose_mean"]
 
-    def const(self, name: str, array: np.ndarray, like: Any) -> Any:
+    def const(self, name: str, array: np.ndarray | None, like: Any) -> Any:
         """``array`` in the namespace, dtype (for floats) and device of ``like``, converted once."""
         key = (name, type(like).__module__, str(like.dtype), str(getattr(like, "device", "cpu")))
         value = self._cache.get(key)
         if value is None:
+            if array is None:
+                raise ModelFileError(self.data.source, f"the model has no {name} array", key=name)
             with for_cache():
                 value = index(array, like) if np.asarray(array).dtype.kind in "iu" else _const(array, like)
             self._cache[key] = value
@@ -162,6 +165,7 @@ class ModelSetup:
                     key=f"expr{num_expression_coeffs}-{data.source}",
                 )
                 num_expression_coeffs = held
+            assert data.exprdirs is not None  # held > 0: the file has expression blend shapes
             exprdirs = np.asarray(data.exprdirs[:, :, :num_expression_coeffs])
         else:
             num_expression_coeffs = 0
@@ -197,7 +201,8 @@ class ModelSetup:
             start, stop = offsets[name]
             pose_mean[start:stop] = mean.reshape(-1, 3)
 
-        extra_names, extra_ids = [], []
+        extra_names: list[str] = []
+        extra_ids: list[int] = []
         if spec.extra_joints:
             ids = (
                 vertex_ids
@@ -220,7 +225,7 @@ class ModelSetup:
                 data.source, f"{spec.display_name} needs static landmark embeddings ({where})", key="lmk_faces_idx"
             )
         neck_chain = []
-        if use_face_contour:
+        if use_face_contour and spec.neck_index is not None:  # the contour's models have a neck joint
             neck_chain = engine.KinematicTree.from_parents(data.parents).chain_to_root(spec.neck_index)
         return cls(
             spec,
@@ -256,7 +261,7 @@ class ModelSetup:
         out = list(self.spec.joint_names if self.data.joint_names is None else self.data.joint_names)
         out += self.extra_joint_names
         if self.spec.landmarks:
-            out += list(names.FACE_LANDMARKS[: len(self.data.lmk_faces_idx)])
+            out += list(names.FACE_LANDMARKS[: len(self.keypoints.corners)])  # one face per landmark
             if self.use_face_contour:
                 out += list(names.FACE_CONTOUR)
         if self.regressor is not None:

@@ -145,6 +145,6 @@ def nested_list_size(value: object, limit: int = MAX_LIST_NODES) -> int:
         count += 1
         if count > limit:
             return count
-        if type(item) in (list, tuple):
+        if isinstance(item, (list, tuple)) and type(item) in (list, tuple):  # subclasses are not walked
             todo.extend(item)
     return count

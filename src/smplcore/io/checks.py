@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, Literal, TypeVar, overload
 
 import numpy as np
 
@@ -39,6 +39,11 @@ class Checker:
 
     def error(self, message: str, key: str | None = None) -> ModelFileError:
         return ModelFileError(self.path, message, key=key or self.key)
+
+    @overload
+    def get(self, key: str, *, required: Literal[True] = True) -> np.ndarray: ...
+    @overload
+    def get(self, key: str, *, required: bool) -> np.ndarray | None: ...
 
     def get(self, key: str, *, required: bool = True) -> np.ndarray | None:
         """The value under ``key`` as a real numeric array (dense); None if absent and not required."""

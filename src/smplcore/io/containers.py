@@ -14,7 +14,7 @@ import stat
 import zipfile
 from collections.abc import Iterator, Mapping
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import IO, Any, BinaryIO
 
 import numpy as np
 
@@ -139,7 +139,7 @@ def read_array_file(path: str | Path) -> np.ndarray:
     return value
 
 
-def read_npy(fh: BinaryIO, budget: LoadBudget, limit: int) -> np.ndarray | Any:
+def read_npy(fh: IO[bytes], budget: LoadBudget, limit: int) -> np.ndarray | Any:
     """Read one .npy array of at most ``limit`` bytes; object arrays are unpickled through the
     allow-list. The declared shape is checked against the budget before anything is allocated."""
     start = fh.tell()
@@ -181,7 +181,7 @@ def _read_npy(fh: BinaryIO) -> np.ndarray | Any:
     return read_npy(fh, LoadBudget("<.npy data>", size), size)
 
 
-def _read_exactly(fh: BinaryIO, nbytes: int) -> bytes:
+def _read_exactly(fh: IO[bytes], nbytes: int) -> bytes:
     chunks, left = [], nbytes
     while left:
         chunk = fh.read(min(left, _CHUNK))
@@ -199,14 +199,16 @@ class LazyNpz(Mapping):
     """
 
     def __init__(self, path: Path, fh: BinaryIO, size: int, budget: LoadBudget) -> None:
-        self.path, self.budget, self._cache = path, budget, {}
+        self.path, self.budget = path, budget
+        self._cache: dict[str, Any] = {}
         self._members = self._index(fh, size)
 
     def _index(self, fh: BinaryIO, size: int) -> dict[str, zipfile.ZipInfo]:
-        end = zipfile._EndRecData(fh)  # the end record, to count entries before parsing them all
+        # the end record, to count entries before parsing them all (private zipfile API, not in typeshed)
+        end = zipfile._EndRecData(fh)  # type: ignore[attr-defined]
         if end is None:
             raise zipfile.BadZipFile("no end of central directory record")
-        count = end[zipfile._ECD_ENTRIES_TOTAL]
+        count = end[zipfile._ECD_ENTRIES_TOTAL]  # type: ignore[attr-defined]
         if count > MAX_ZIP_MEMBERS:
             raise ModelFileError(
                 self.path, f"the archive lists {count} members; model files have at most {MAX_ZIP_MEMBERS}"

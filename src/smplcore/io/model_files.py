@@ -145,7 +145,7 @@ def load_model(path: str | Path, *, model_type: str | None = None, gender: str |
     return _with_file_uv(data, path, raw)
 
 
-def _with_file_uv(data: ModelData, path: Path, raw: dict[str, Any]) -> ModelData:
+def _with_file_uv(data: ModelData, path: Path, raw: Mapping[str, Any]) -> ModelData:
     """The UV map (``vt``, ``ft``) the file carries, checked against its faces (see :mod:`smplcore.io.uv`)."""
     from smplcore.io.uv import uv_from_file_arrays
 
@@ -156,7 +156,7 @@ def _with_file_uv(data: ModelData, path: Path, raw: dict[str, Any]) -> ModelData
 def save_npz(data: ModelData, path: str | Path) -> Path:
     """Write ``data`` as smplcore's pickle-free ``.npz`` (loads with ``np.load(allow_pickle=False)``)."""
     path = Path(path)
-    arrays: dict[str, np.ndarray] = {"format": np.array(FORMAT_TAG)}
+    arrays: dict[str, Any] = {"format": np.array(FORMAT_TAG)}
     for name in ("model_type", "gender"):
         arrays[name] = np.array(getattr(data, name))
     for name in (
@@ -272,7 +272,7 @@ def _official(c: Checker, model_type: str | None, gender: str | None) -> ModelDa
             split, stop = 10, min(total, 20)
         shapedirs, exprdirs = shapedirs[:, :, :split], shapedirs[:, :, split:stop]
 
-    hands: dict[str, np.ndarray | None] = {}
+    hands: dict[str, Any] = {}  # ModelData's hands_* fields: arrays or None
     if model_type in ("smplh", "smplx"):
         for side, suffix in (("left", "l"), ("right", "r")):
             # Empty arrays (some AMASS SMPL+H downloads) mean "no hand PCA", as in smplx.
@@ -284,18 +284,18 @@ def _official(c: Checker, model_type: str | None, gender: str | None) -> ModelDa
             hands[f"hands_mean_{side}"] = (
                 None if mean is None else c.expect(f"hands_mean{suffix}", mean.reshape(-1), (45,))
             )
-    side = None
+    hand_side: str | None = None
     if model_type == "mano":
-        side = gender if gender in ("left", "right") else (gender_from_name(path) or "right")
-        if side not in ("left", "right"):
-            side = "right"
+        hand_side = gender if gender in ("left", "right") else (gender_from_name(path) or "right")
+        if hand_side not in ("left", "right"):
+            hand_side = "right"
         comps = c.expect("hands_components", c.get("hands_components"), (None, 45))
         mean = c.expect("hands_mean", c.get("hands_mean").reshape(-1), (45,))
-        hands[f"hands_components_{side}"], hands[f"hands_mean_{side}"] = comps, mean
+        hands[f"hands_components_{hand_side}"], hands[f"hands_mean_{hand_side}"] = comps, mean
 
     landmarks = _official_landmarks(path, c, model_type, faces.shape[0])
-    if side is not None:
-        gender = side
+    if hand_side is not None:
+        gender = hand_side
     elif gender is None:
         gender = gender_from_name(path) or ("generic" if model_type == "flame" else "neutral")
     return ModelData(
@@ -312,8 +312,11 @@ def _official(c: Checker, model_type: str | None, gender: str | None) -> ModelDa
         exprdirs=exprdirs,
         joint_names=spec.joint_names,
         source=str(path),
+        lmk_faces_idx=landmarks.get("lmk_faces_idx"),
+        lmk_bary_coords=landmarks.get("lmk_bary_coords"),
+        dynamic_lmk_faces_idx=landmarks.get("dynamic_lmk_faces_idx"),
+        dynamic_lmk_bary_coords=landmarks.get("dynamic_lmk_bary_coords"),
         **hands,
-        **landmarks,
     )
 
 
@@ -324,28 +327,32 @@ def _absent_if_empty(value: np.ndarray | None) -> np.ndarray | None:
 def _official_landmarks(path: Path, c: Checker, model_type: str, num_faces: int) -> dict[str, np.ndarray]:
     """Static and dynamic landmarks: inside SMPL-X files, in embedding files next to FLAME files."""
     out: dict[str, np.ndarray] = {}
+    # (checker, (static face key, bary key) or None, (dynamic face key, bary key) or None)
+    sources: list[tuple[Checker, tuple[str, str] | None, tuple[str, str] | None]]
     if model_type == "smplx":
-        sources = [(c, "lmk_faces_idx", "lmk_bary_coords", "dynamic_lmk_faces_idx", "dynamic_lmk_bary_coords")]
+        sources = [(c, ("lmk_faces_idx", "lmk_bary_coords"), ("dynamic_lmk_faces_idx", "dynamic_lmk_bary_coords"))]
     elif model_type == "flame":
         sources = []
         static = path.parent / "flame_static_embedding.pkl"
         dynamic = path.parent / "flame_dynamic_embedding.npy"
         if static.exists():
-            sources.append((Checker(static, read_container(static)), "lmk_face_idx", "lmk_b_coords", None, None))
+            sources.append((Checker(static, read_container(static)), ("lmk_face_idx", "lmk_b_coords"), None))
         if dynamic.exists():
-            sources.append((Checker(dynamic, read_container(dynamic)), None, None, "lmk_face_idx", "lmk_b_coords"))
+            sources.append((Checker(dynamic, read_container(dynamic)), None, ("lmk_face_idx", "lmk_b_coords")))
     else:
         return out
-    for checker, s_idx, s_bary, d_idx, d_bary in sources:
-        if s_idx:
+    for checker, static_keys, dynamic_keys in sources:
+        if static_keys:
+            s_idx, s_bary = static_keys
             idx = checker.expect(s_idx, checker.get(s_idx).reshape(-1), (None,))
             bary = checker.expect(s_bary, checker.get(s_bary), (idx.shape[0], 3))
             out["lmk_faces_idx"], out["lmk_bary_coords"] = check_index(checker.path, s_idx, idx, num_faces), bary
-        if d_idx:
-            idx = checker.get(d_idx, required=model_type == "flame")
-            if idx is None:
+        if dynamic_keys:
+            d_idx, d_bary = dynamic_keys
+            found = checker.get(d_idx, required=model_type == "flame")
+            if found is None:
                 continue
-            idx = checker.expect(d_idx, idx, (79, None))
+            idx = checker.expect(d_idx, found, (79, None))
             bary = checker.expect(d_bary, checker.get(d_bary), (79, idx.shape[1], 3))
             idx = check_index(checker.path, d_idx, idx, num_faces)
             out["dynamic_lmk_faces_idx"], out["dynamic_lmk_bary_coords"] = idx, bary

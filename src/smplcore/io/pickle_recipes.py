@@ -108,7 +108,7 @@ class DtypeRecipe:
             if self.elsize not in (-1, dtype.itemsize):
                 raise UnsafePickleError(f"dtype {self.type_str} with item size {self.elsize}")
         if self.byteorder in "<>" and dtype.itemsize > 1 and kind != "S":
-            dtype = dtype.newbyteorder(self.byteorder)
+            dtype = dtype.newbyteorder("<" if self.byteorder == "<" else ">")
         if dtype.itemsize == 0:
             raise UnsafePickleError(f"zero-size dtype {dtype}")
         return dtype
@@ -162,7 +162,7 @@ def build_array(budget: LoadBudget, dtype: Any, shape: Any, data: Any, order: st
     raw = as_bytes(data, "array data")
     if len(raw) != nbytes:
         raise pickle.UnpicklingError(f"array of shape {shape} and dtype {real} needs {nbytes} bytes, found {len(raw)}")
-    return np.frombuffer(raw, dtype=real, count=count).reshape(shape, order=order)
+    return np.frombuffer(raw, dtype=real, count=count).reshape(shape, order="F" if order == "F" else "C")
 
 
 def materialize(obj: Any, budget: LoadBudget | None = None) -> Any:

@@ -30,7 +30,8 @@ from __future__ import annotations
 import io
 import pickle
 import struct
-from typing import Any, BinaryIO
+from collections.abc import Callable
+from typing import IO, Any, ClassVar
 
 import numpy as np
 
@@ -61,7 +62,7 @@ __all__ = ["ChumpyObject", "SparseMatrix", "UnsafePickleError", "materialize", "
 class _BoundedReader:
     """A file wrapper whose reads never ask for more than the bytes left (no huge pre-allocation)."""
 
-    def __init__(self, fh: BinaryIO, limit: int) -> None:
+    def __init__(self, fh: IO[bytes], limit: int) -> None:
         self.fh, self.left = fh, int(limit)
 
     def read(self, n: int = -1) -> bytes:
@@ -95,7 +96,15 @@ def _check_codec(encoding: Any, errors: Any = "strict") -> str:
 
 
 class _SafeUnpickler(pickle._Unpickler):
-    dispatch = pickle._Unpickler.dispatch.copy()
+    # The pure-Python unpickler's internals that the opcode handlers below use, declared for the type
+    # checker (typeshed leaves them out); pickle._Unpickler sets or defines every one of them.
+    stack: list[Any]
+    append: Callable[[Any], None]
+    read: Callable[[int], bytes]
+    readline: Callable[[], bytes]
+    pop_mark: Callable[[], list[Any]]
+    # the opcode table: its handlers take this class (typeshed says pickle.Unpickler)
+    dispatch: ClassVar[dict[int, Callable[[Any], None]]] = pickle._Unpickler.dispatch.copy()
 
     def __init__(self, file: _BoundedReader, budget: LoadBudget) -> None:
         super().__init__(file, encoding="latin1", fix_imports=False)
@@ -384,7 +393,7 @@ class _SafeUnpickler(pickle._Unpickler):
     del _op, _method
 
 
-def safe_load(file: BinaryIO | bytes, budget: LoadBudget | None = None, *, limit: int | None = None) -> Any:
+def safe_load(file: IO[bytes] | bytes, budget: LoadBudget | None = None, *, limit: int | None = None) -> Any:
     """Unpickle ``file`` (a binary file object or bytes) through the allow-list.
 
     Parameters

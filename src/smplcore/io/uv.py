@@ -13,6 +13,7 @@ SMPL-X ``.npz`` / ``.pkl`` files carry ``vt`` and ``ft``; SMPL's UV map is distr
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -50,7 +51,7 @@ def check_uv(path: str | Path, vt: Any, ft: Any, num_faces: int) -> tuple[np.nda
     return vt, ft.astype(np.int64)
 
 
-def uv_from_file_arrays(path: str | Path, raw: dict[str, Any], num_faces: int) -> dict[str, np.ndarray]:
+def uv_from_file_arrays(path: str | Path, raw: Mapping[str, Any], num_faces: int) -> dict[str, np.ndarray]:
     """``{"vt": ..., "ft": ...}`` from the raw arrays of a model file, or ``{}`` when it has no UVs.
 
     A file with only one of the two keys is rejected (a UV map needs both).

@@ -157,10 +157,10 @@ def read_openpose(
         frames.append(people[:max_people] if max_people is not None else people)
     if body_k is None:
         body_k = 25
-    parts = (
+    conventions = (
         [_OPENPOSE_BODIES[body_k]] + (["hand21_left", "hand21_right"] if hands else []) + (["face70"] if face else [])
     )
-    return _pack(frames, parts, tuple(str(f) for f in files))
+    return _pack(frames, conventions, tuple(str(f) for f in files))
 
 
 def _pack(frames: list[list[np.ndarray]], parts: list[str] | tuple[str, ...], labels: tuple[Any, ...]) -> KeypointArray:
@@ -229,9 +229,10 @@ def read_coco(path: str | Path, *, max_people: int | None = None) -> KeypointArr
                 parts.append(np.zeros((len(part_names), 3), np.float32) if part is None else part)
             person = np.concatenate(parts)
         else:
-            person = _triples(path, f"{where}.keypoints", ann["keypoints"], None if names is None else len(names))
-            if person is None:
+            found = _triples(path, f"{where}.keypoints", ann["keypoints"], None if names is None else len(names))
+            if found is None:
                 raise ModelFileError(path, "empty", key=f"{where}.keypoints")
+            person = found
             if names is None:
                 names = _coco_names(path, doc, person.shape[0], f"{where}.keypoints")
         by_image.setdefault(ann["image_id"], []).append(person)
@@ -247,7 +248,8 @@ def read_coco(path: str | Path, *, max_people: int | None = None) -> KeypointArr
         ids = sorted(by_image, key=lambda k: (str(type(k)), k))
     frames = [by_image.get(k, [])[:max_people] if max_people is not None else by_image.get(k, []) for k in ids]
     names = names or COCO17
-    return _pack(frames, [_convention_of(names)] if _convention_of(names) else names, tuple(ids))
+    convention = _convention_of(names)
+    return _pack(frames, [convention] if convention else names, tuple(ids))
 
 
 def _coco_names(path: Path, doc: dict, count: int, field: str) -> tuple[str, ...]:

@@ -294,7 +294,7 @@ def _skeleton_path_applies(loaded: LoadedModel) -> bool:
     return not setup.hand_components and not np.any(setup.pose_mean)
 
 
-def _skeleton_joints(loaded: LoadedModel, params: dict[str, np.ndarray]) -> np.ndarray:
+def _skeleton_joints(loaded: LoadedModel, params: dict[str, Any]) -> np.ndarray:
     """(B, J, 3) posed skeleton joints (translation included): rotations, rest joints, kinematic chain.
 
     The same engine functions as a full forward pass, minus what only the mesh and the extra vertex
@@ -305,6 +305,7 @@ def _skeleton_joints(loaded: LoadedModel, params: dict[str, np.ndarray]) -> np.n
 
     setup = loaded.model.setup
     torch_backend = loaded.backend == "torch"
+    xp: Any  # torch or numpy: the array namespace of the chosen backend
     if torch_backend:
         import torch
 

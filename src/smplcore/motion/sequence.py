@@ -117,7 +117,7 @@ class Motion:
         return replace(
             self,
             poses=rs.apply_rotations(self.poses, p),
-            trans=linear(self.trans),
+            trans=rs.apply_linear(self.trans, p),
             fps=p.fps,
             expression=linear(self.expression),
             dmpls=linear(self.dmpls),
@@ -268,14 +268,14 @@ def motion_from_arrays(
             **optional,
         )
     except (ShapeError, ValueError) as exc:
-        key = str(exc).split(":")[0] if ":" in str(exc) else None
-        raise ModelFileError(path, str(exc).split(": ", 1)[-1], key=key) from None
+        culprit = str(exc).split(":")[0] if ":" in str(exc) else None
+        raise ModelFileError(path, str(exc).split(": ", 1)[-1], key=culprit) from None
 
 
 def save_motion(motion: Motion, path: str | Path) -> Path:
     """Write ``motion`` as an AMASS-style ``.npz`` (no pickles)."""
     path = Path(path)
-    arrays = {
+    arrays: dict[str, Any] = {
         "poses": motion.poses,
         "trans": motion.trans,
         "betas": motion.betas,

@@ -9,6 +9,7 @@ and the files have AMASS's keys: SMPL+H ``poses`` (T, 156), ``trans``, ``betas``
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -50,7 +51,8 @@ def write_sequence(
     """Write one synthetic AMASS-style ``.npz``."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez(path, **random_arrays(frames, fps, model_type, gender, seed))
+    arrays: dict[str, Any] = random_arrays(frames, fps, model_type, gender, seed)
+    np.savez(path, **arrays)
     return path
 
 

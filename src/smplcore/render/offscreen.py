@@ -336,7 +336,7 @@ def render_mesh(
 
     scene = pyrender.Scene(bg_color=np.append(bg[:3], 1.0), ambient_light=np.full(3, _AMBIENT))
     for i in range(n):
-        if split is not None:
+        if split is not None and image is not None:  # set together
             from smplcore.render.texture import textured_mesh
 
             scene.add(textured_mesh(pyrender, trimesh, placed[i], tris, split, image, colors[i, 3], smooth))

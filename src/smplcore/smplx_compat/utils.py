@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from smplcore.lbs import rot_mat_to_euler
+from smplcore.smplx_compat.lbs import rot_mat_to_euler
 from smplcore.torch.outputs import FLAMEOutput, MANOOutput, ModelOutput, SMPLHOutput, SMPLOutput, SMPLXOutput
 
 __all__ = [

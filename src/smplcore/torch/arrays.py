@@ -30,7 +30,7 @@ class ModuleArrays:
     """The :class:`~smplcore.frontend.evaluate.ArraySource` of a torch body module."""
 
     def __init__(self, module: torch.nn.Module) -> None:
-        self.module = module
+        self.module: Any = module  # a body module: its buffers (v_template, ...) are duck-typed here
         self._key: tuple | None = None
         self._fast: engine.BodyArrays | None = None
         self.handle = ops.register(self)  # names these arrays in the custom operators (torch.compile)
@@ -60,7 +60,7 @@ class ModuleArrays:
         """The engine's arrays, rebuilt when a source buffer moved or was edited."""
         sources = self._sources()
         key = tuple((t.data_ptr(), t._version, t.dtype, t.device, tuple(t.shape)) for t in sources)
-        if key != self._key:
+        if key != self._key or self._fast is None:
             self._fast, self._key = self._build(), key
         return self._fast
 

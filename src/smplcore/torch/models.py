@@ -52,7 +52,7 @@ class SMPLH(SMPL):
     """SMPL+H: SMPL's body with articulated hands (52 joints; outputs 73)."""
 
     SPEC = SMPLH_SPEC
-    FORWARD_ARGS = _SMPLH_ARGS + _TAIL
+    FORWARD_ARGS: tuple[str, ...] = _SMPLH_ARGS + _TAIL
     OUTPUT = SMPLHOutput
     NUM_BODY_JOINTS = 21
     NUM_HAND_JOINTS = 15

@@ -44,6 +44,14 @@ class SMPL(nn.Module):
     """SMPL (24 joints; outputs 45 with the extra vertex joints), and the implementation of every class."""
 
     SPEC: FamilySpec = SMPL_SPEC
+    # registered buffers, declared for the type checker (nn.Module.__getattr__ types them Tensor | Module)
+    faces_tensor: torch.Tensor
+    shapedirs: torch.Tensor
+    v_template: torch.Tensor
+    J_regressor: torch.Tensor
+    posedirs: torch.Tensor
+    parents: torch.Tensor
+    lbs_weights: torch.Tensor
     LAYER = False
     NUM_JOINTS = 23
     NUM_BODY_JOINTS = 23
@@ -58,7 +66,7 @@ class SMPL(nn.Module):
         "return_full_pose",
         "pose2rot",
     )
-    OUTPUT: type = SMPLOutput
+    OUTPUT: type[Any] = SMPLOutput
     MAPPER_TAKES_VERTICES = False
     #: smplx's parameters, in the order it creates them; the Layer class creates only LAYER_PARAMETERS.
     PARAMETERS: tuple[str, ...] = ("betas", "global_orient", "body_pose", "transl")
@@ -128,7 +136,7 @@ class SMPL(nn.Module):
     def _register_buffers(self, setup: ModelSetup, dtype: torch.dtype) -> None:
         d = setup.data
 
-        def as_float(a: np.ndarray) -> torch.Tensor:
+        def as_float(a: Any) -> torch.Tensor:
             return torch.tensor(np.asarray(a), dtype=dtype)
 
         self.register_buffer("faces_tensor", torch.tensor(np.asarray(d.faces), dtype=torch.long))
@@ -394,7 +402,7 @@ class SMPL(nn.Module):
 
 
 def _load(
-    cls: type, model_path: Any, data_struct: Any, data: ModelData | None, gender: str, ext: str, is_rhand: bool
+    cls: type[SMPL], model_path: Any, data_struct: Any, data: ModelData | None, gender: str, ext: str, is_rhand: bool
 ) -> ModelData:
     """The model's data: given, from smplx's ``data_struct``, or from the file or folder."""
     from smplcore.io.locate import read_model

@@ -255,10 +255,8 @@ class Viewer:
                     if self.show_names:
                         for label, point in zip(nodes["names"], joints):
                             label.position = point
-                    if "keypoints" in nodes:
-                        nodes["keypoints"].points = self.keypoints[min(body.frame, len(self.keypoints) - 1)].astype(
-                            np.float32
-                        )
+                    if "keypoints" in nodes and (kp := self.keypoints) is not None:
+                        nodes["keypoints"].points = kp[min(body.frame, len(kp) - 1)].astype(np.float32)
                 self.timings.append(1e3 * (time.perf_counter() - start))
 
     def set_overlays(self, skeleton: bool | None = None, names: bool | None = None) -> None:

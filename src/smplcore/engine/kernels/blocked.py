@@ -111,7 +111,7 @@ def posed_vertices(feats: Any, transforms: Any, blend_basis: Any, blocks: tuple[
     out = empty((batch, num_verts, 3), feats)
     sub = min(batch, max(1, _APPLY_VALUES // size))  # bodies per skinning step
     packed_blend = num_rows == blend_basis.shape[0] and all(b.packed_blend is not None for b in blocks)
-    rest_buf = None if packed_blend else empty((3 * batch * size,), feats)
+    rest_buf: Any = None if packed_blend else empty((3 * batch * size,), feats)
     blend_buf = None if all(b.packed_weights is not None for b in blocks) else empty((12 * sub * size,), feats)
     tmp_buf = empty((sub * size,), feats)
     scratch_buf = None if is_torch(feats) else empty((sub * size,), feats)  # NumPy has no fused multiply-add
