@@ -17,7 +17,6 @@ Rest-pose semantics (what a rig made from this reproduces):
 from __future__ import annotations
 
 import json
-import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from smplcore.errors import ShapeError
+from smplcore.errors import ShapeError, warn
 
 __all__ = [
     "Animation",
@@ -279,7 +278,7 @@ def _motion_from_arrays(arrays: Mapping[str, Any], source: str = "<memory>", fps
 
 def _notify(notes: list[str], message: str) -> None:
     notes.append(message)
-    warnings.warn(message, stacklevel=3)
+    warn(message)
 
 
 def _fit_width(name: str, value: np.ndarray, width: int, notes: list[str]) -> np.ndarray:
