@@ -141,6 +141,8 @@ def run_demo(
     options: dict[str, Any] = {}
     if get_spec(data.model_type).hand_blocks:
         options["use_pca"] = _has_hand_pca(data) if use_pca is None else bool(use_pca)
+        if getattr(data, "hands_mean_left", None) is None:
+            options["flat_hand_mean"] = True  # no mean hand pose in the file (AMASS's): flat, without a warning
     model = BodyModel(data=data, **options)
     if model.model_type not in ("smpl", "open", "smplh", "smplx"):
         raise ValueError(f"the demo poses bodies; a {model.model_type!r} model has no SMPL body pose")
