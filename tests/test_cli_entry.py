@@ -131,6 +131,20 @@ def test_process_without_torch_or_ray(monkeypatch, tmp_path, capsys):
     )
 
 
+@needs_open
+def test_render_without_pyrender_stops_before_writing(monkeypatch, tmp_path, capsys):
+    pytest.importorskip("imageio_ffmpeg")
+    motion = write_sequence(tmp_path / "walk.npz", 10, 30.0, "smplh", "male")
+    _missing(monkeypatch, "pyrender")
+    assert main(["render", str(motion), "-o", str(tmp_path / "w.mp4"), "--no-progress"]) == 2
+    err = _one_line(capsys)
+    assert err == (
+        "smplcore render: writing videos needs pyrender, which is not installed; "
+        'install it with: pip install "smplcore[view]"'
+    )
+    assert not (tmp_path / "w.mp4").exists()
+
+
 def test_an_unexpected_missing_module_still_shows_its_traceback(monkeypatch):
     """Only optional dependencies become one line: a module smplcore does not list is a bug to show."""
     from smplcore import cli

@@ -49,9 +49,9 @@ def missing(module: str, purpose: str, extra: str | None = None, reason: str | N
     top = module.split(".")[0]
     extra = extra or EXTRAS.get(top)
     how = install_hint(extra) if extra else f"pip install {top}"
-    what = f"({reason})" if reason else "which is not installed"
+    what = f" ({reason})" if reason else ", which is not installed"
     return MissingDependencyError(
-        f"{purpose} needs {_DISPLAY.get(top, top)} {what}; install it with: {how}",
+        f"{purpose} needs {_DISPLAY.get(top, top)}{what}; install it with: {how}",
         module=top,
         purpose=purpose,
         extra=extra,
