@@ -178,3 +178,29 @@ def test_create_without_torch_says_what_to_install():
     assert kind == "MissingDependencyError True"
     assert message.startswith("smplcore.create is the PyTorch front end and needs torch, which is not installed")
     assert "pip install torch==2.13.0" in message and "smplcore.BodyModel" in message
+
+
+def test_export_use_pca_decides_how_hand_poses_are_read(fake_models, tmp_path, capsys):
+    """A parameter set's 45-value hand poses are axis-angle by default and with --no-use-pca; --use-pca
+    reads them as PCA coefficients, which the model (6 components) refuses with a fix-it message."""
+    import trimesh
+
+    rng = np.random.default_rng(0)
+    params = tmp_path / "params.npz"
+    np.savez(
+        params,
+        betas=np.zeros((1, 10)),
+        body_pose=rng.normal(0, 0.2, (1, 63)),
+        left_hand_pose=rng.normal(0, 0.3, (1, 45)),
+        right_hand_pose=rng.normal(0, 0.3, (1, 45)),
+    )
+    base = ["export", str(params), "--model-path", str(fake_models["root"]), "--model-type", "smplh"]
+    assert main([*base, "-o", str(tmp_path / "a.ply")]) == 0
+    assert main([*base, "-o", str(tmp_path / "b.ply"), "--no-use-pca", "--ext", "pkl"]) == 0
+    a = trimesh.load(tmp_path / "a.ply", process=False).vertices
+    b = trimesh.load(tmp_path / "b.ply", process=False).vertices
+    np.testing.assert_array_equal(a, b)
+    capsys.readouterr()
+    assert main([*base, "-o", str(tmp_path / "c.ply"), "--use-pca"]) == 2
+    err = _one_line(capsys)
+    assert "left_hand_pose: expected shape (B, 6), got (1, 45)" in err and "use_pca=False for 45 axis-angle" in err
