@@ -187,8 +187,9 @@ def test_process_finds_official_names_and_amass_layouts(downloads, tmp_path):
 
 
 @pytest.mark.skipif(not OPEN_MODEL_PATH.exists(), reason="the open model is not built")
-def test_open_model_ignores_the_folder_and_picks_the_gender(tmp_path):
-    assert locate_model_file(tmp_path, "open", gender="female").name == "open_model_female.npz"
+def test_open_model_ignores_the_folder_with_a_warning_and_picks_the_gender(tmp_path):
+    with pytest.warns(UserWarning, match="model_type='open' is the packaged open model: the folder is not used"):
+        assert locate_model_file(tmp_path, "open", gender="female").name == "open_model_female.npz"
     assert locate_model_file(None, "open") == OPEN_MODEL_PATH
 
 

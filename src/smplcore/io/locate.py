@@ -19,7 +19,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from smplcore.errors import ModelFileError
+from smplcore.errors import ModelFileError, warn
 from smplcore.family.specs import get_spec
 from smplcore.io.open_model import open_model_path
 
@@ -132,6 +132,10 @@ def locate_model_file(
         raise ValueError(f"model_type: {path} is a folder; say which model type to load from it")
     spec = get_spec(model_type)
     if spec.model_type == "open":
+        warn(
+            f"model_path: {path} is a folder, and model_type='open' is the packaged open model: the folder is "
+            "not used (pass model_path=None, or the .npz file of an open model to load that one)"
+        )
         return open_model_path(gender)
     ext = (ext or default_ext(spec.model_type)).lstrip(".").lower()
     if ext not in EXTENSIONS:
