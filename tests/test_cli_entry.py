@@ -157,6 +157,21 @@ def test_an_unexpected_missing_module_still_shows_its_traceback(monkeypatch):
         main(["convert", "a.pkl", "b.npz"])
 
 
+def test_a_plain_import_error_of_an_optional_module_is_one_line_too(monkeypatch, capsys):
+    """Code that imports an optional module directly (no ``require``) still ends in one line and exit 2."""
+    from smplcore import cli
+
+    def run(args):
+        raise ModuleNotFoundError("No module named 'trimesh'", name="trimesh")
+
+    monkeypatch.setattr(cli, "_cmd_convert", run)
+    assert main(["convert", "a.pkl", "b.npz"]) == 2
+    assert _one_line(capsys) == (
+        "smplcore convert: this command needs trimesh (No module named 'trimesh'); "
+        'install it with: pip install "smplcore[export]"'
+    )
+
+
 @needs_open
 def test_create_without_torch_says_what_to_install():
     code = textwrap.dedent(
