@@ -7,8 +7,9 @@ import pytest
 
 import fakes
 from smplcore.errors import ModelFileError
+from smplcore.io.locate import locate_model_file
 from smplcore.motion import Motion, load_motion, motion_from_arrays, pick_gender, resample_plan, save_motion
-from smplcore.motion.models import Evaluator, ModelCache, model_file, normalize_gender
+from smplcore.motion.models import Evaluator, ModelCache, normalize_gender
 from smplcore.motion.resample import quat_to_rotvec, rotvec_to_quat, slerp_rotvec
 from smplcore.motion.synthetic import random_arrays, write_sequence
 
@@ -181,12 +182,12 @@ def test_model_file_in_smplx_and_amass_layouts(tmp_path):
     smplx_style = fakes.write_smplh(tmp_path / "models" / "smplh", "female", "npz", amass=True)
     amass_style = fakes.write_smplh(tmp_path / "models" / "smplh", "male", "npz", amass=True, official_name=True)
     root = tmp_path / "models"
-    assert model_file(root, "smplh", "female") == smplx_style
-    assert model_file(root, "smplh", "male") == amass_style
-    assert model_file(root / "smplh", "smplh", "male") == amass_style  # the type folder itself
-    assert model_file(smplx_style, "smplh", "male") == smplx_style  # a file serves every gender
+    assert locate_model_file(root, "smplh", gender="female") == smplx_style
+    assert locate_model_file(root, "smplh", gender="male") == amass_style
+    assert locate_model_file(root / "smplh", "smplh", gender="male") == amass_style  # the type folder itself
+    assert locate_model_file(smplx_style, "smplh", gender="male") == smplx_style  # a file serves every gender
     with pytest.raises(ModelFileError, match=r"no neutral SMPL\+H model .*smplh/neutral/model.npz"):
-        model_file(root, "smplh", "neutral")
+        locate_model_file(root, "smplh", gender="neutral")
 
     cache = ModelCache(root, backend="numpy")
     f, m = cache.get("smplh", "female"), cache.get("smplh", "male")

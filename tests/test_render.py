@@ -130,7 +130,7 @@ def test_joints_are_drawn(capsule_image):
 def test_render_to_png_non_square_and_background(gl, tmp_path):
     cap = _capsule()
     black = (0.0, 0.0, 0.0)
-    path = render_to_png(cap.vertices, cap.faces, tmp_path / "sub" / "out.png", width=200, height=120, background=black)
+    path = render_to_png(tmp_path / "sub" / "out.png", cap.vertices, cap.faces, width=200, height=120, background=black)
     from PIL import Image
 
     with Image.open(path) as im:
@@ -197,7 +197,7 @@ def test_save_png_checks(tmp_path):
     with pytest.raises(ValueError, match=r"path: expected a file name ending in \.png"):
         save_png(np.zeros((4, 4, 3), dtype=np.uint8), tmp_path / "a.jpg")
     with pytest.raises(ValueError, match=r"path: expected a file name ending in \.png"):
-        render_to_png(TRI_V, TRI_F, tmp_path / "a.jpg")
+        render_to_png(tmp_path / "a.jpg", TRI_V, TRI_F)
 
 
 def test_texture_through_the_uv_map_is_drawn_the_right_way_up(gl):

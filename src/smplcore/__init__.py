@@ -74,8 +74,21 @@ def __getattr__(name: str) -> Any:
 
         return importlib.import_module(f"smplcore.{name}")
     if name in _TORCH_NAMES:
-        import smplcore.torch as torch_front_end
+        try:
+            import smplcore.torch as torch_front_end
+        except ModuleNotFoundError as exc:
+            if (exc.name or "").split(".")[0] != "torch":
+                raise
+            from smplcore._deps import TORCH_INSTALL, MissingDependencyError
 
+            raise MissingDependencyError(
+                f"smplcore.{name} is the PyTorch front end and needs torch, which is not installed; install it "
+                f"with: {TORCH_INSTALL} (or any torch>=2.1). Without torch, smplcore.BodyModel evaluates the same "
+                "models with NumPy: smplcore.BodyModel(model_path, model_type, ...)",
+                module="torch",
+                purpose=f"smplcore.{name}",
+                extra="torch",
+            ) from None
         return getattr(torch_front_end, name)
     raise AttributeError(f"module 'smplcore' has no attribute {name!r}")
 

@@ -14,6 +14,12 @@ from smplcore.errors import ModelFileError, ShapeError
 _SUBCOMMAND_MODULES = ("smplcore.export.cli", "smplcore.motion.cli", "smplcore.view.cli")
 
 
+def _version() -> str:
+    from smplcore import __version__
+
+    return __version__
+
+
 def _parse_floats(text: str) -> list[float]:
     try:
         return [float(v) for v in text.replace(",", " ").split()]
@@ -32,6 +38,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         model_path=args.model_path,
         model_type=args.model_type,
         gender=args.gender,
+        ext=args.ext,
+        use_pca=args.use_pca,
         mesh_format=args.format,
         render=not args.no_render,
         texture=None if args.texture == "none" else args.texture,
@@ -47,13 +55,35 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 def _cmd_convert(args: argparse.Namespace) -> int:
     from smplcore.io import convert
 
-    out = convert(args.input, args.output, model_type=args.model_type, gender=args.gender)
+    output = Path(args.output)
+    if output.is_dir() or not output.suffix or str(args.output).endswith(("/", "\\")):
+        output = output / f"{Path(args.input).stem}.npz"  # a folder (created): the input's name, as .npz
+    out = convert(args.input, output, model_type=args.model_type, gender=args.gender)
     print(f"wrote {out}")
     return 0
 
 
+def _model_file_options(parser: argparse.ArgumentParser) -> None:
+    """``--ext`` and ``--use-pca/--no-use-pca`` of ``smplcore demo``, as smplx's ``ext`` and ``use_pca``."""
+    parser.add_argument(
+        "--ext",
+        choices=("pkl", "npz"),
+        default=None,
+        help="model file format to look for first in a folder (default: smplx's, npz for SMPL-X, pkl for the "
+        "others); the other format is used when only it is there",
+    )
+    parser.add_argument(
+        "--use-pca",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="SMPL+H / SMPL-X: hand poses as PCA coefficients (default: when the model file has a hand PCA; "
+        "an AMASS SMPL+H .npz has none)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="smplcore", description="SMPL-family body models: fast, exact, safe.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="command", required=True)
 
     demo = sub.add_parser("demo", help="pose a body model and write a mesh and a rendered PNG")
@@ -69,6 +99,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--model-path", default=None, help="your model file or folder (default: the open model)")
     demo.add_argument("--model-type", default=None, help="smpl, smplh, smplx or open")
     demo.add_argument("--gender", default="neutral")
+    _model_file_options(demo)
     demo.add_argument("--format", choices=("obj", "ply"), default="obj", help="mesh format (default: obj)")
     demo.add_argument("--no-render", action="store_true", help="skip the PNG")
     demo.add_argument(
@@ -80,11 +111,28 @@ def build_parser() -> argparse.ArgumentParser:
     )
     demo.set_defaults(run=_cmd_demo)
 
-    conv = sub.add_parser("convert", help="rewrite any model file as a clean, pickle-free .npz")
-    conv.add_argument("input", type=Path)
-    conv.add_argument("output", type=Path)
-    conv.add_argument("--model-type", default=None)
-    conv.add_argument("--gender", default=None)
+    conv = sub.add_parser(
+        "convert",
+        help="rewrite any model file as a clean, pickle-free .npz",
+        description="Read a model file (official .pkl or .npz of SMPL, SMPL+H, SMPL-X, MANO, FLAME; nothing in it "
+        "is run) and write it as smplcore's .npz, which loads with numpy alone (no pickle, no chumpy). smplcore "
+        "reads the result anywhere a model file is taken; smplx cannot read it.",
+    )
+    conv.add_argument("input", type=Path, metavar="IN", help="the model file to read (.pkl or .npz)")
+    conv.add_argument(
+        "output",
+        type=Path,
+        metavar="OUT",
+        help="the .npz to write, or a folder (created if missing) to write IN's name with .npz into",
+    )
+    conv.add_argument(
+        "--model-type",
+        default=None,
+        help="smpl, smplh, smplx, mano or flame (default: from the file name, else from the file's joints)",
+    )
+    conv.add_argument(
+        "--gender", default=None, help="gender (MANO: right/left) to record (default: from the file name)"
+    )
     conv.set_defaults(run=_cmd_convert)
 
     for module_name in _SUBCOMMAND_MODULES:
@@ -92,12 +140,36 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+# A command whose extra brings several others: its missing-dependency line names it.
+_COMMAND_EXTRAS = {"demo": ("demo", {"render", "export", "cli"})}
+
+
+def _missing_dependency(command: str, exc: ImportError) -> str:
+    """One line for a missing optional module: what needs it and the ``pip install "smplcore[extra]"`` line."""
+    from smplcore._deps import MissingDependencyError, install_hint, missing
+
+    if not isinstance(exc, MissingDependencyError):
+        exc = missing(exc.name or "?", "this command", reason=str(exc))
+    extra, covers = _COMMAND_EXTRAS.get(command, (None, set()))
+    if extra and exc.extra in covers:
+        return str(exc).replace(install_hint(exc.extra), install_hint(extra))
+    return str(exc)
+
+
 def main(argv: list[str] | None = None) -> int:
+    from smplcore._deps import EXTRAS, MissingDependencyError
+
     args = build_parser().parse_args(argv)
     try:
         return args.run(args)
     except (ModelFileError, ShapeError, ValueError, FileNotFoundError) as exc:
         print(f"smplcore {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except ImportError as exc:
+        top = (exc.name or "").split(".")[0]
+        if not isinstance(exc, MissingDependencyError) and top not in EXTRAS:
+            raise  # not an optional dependency: a bug, shown in full
+        print(f"smplcore {args.command}: {_missing_dependency(args.command, exc)}", file=sys.stderr)
         return 2
 
 

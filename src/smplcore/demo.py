@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from smplcore.family.names import SMPL_JOINTS
+from smplcore.family.specs import get_spec
 
 # A few body poses in SMPL's skeleton: joint name → axis-angle (radians), in SMPL's frame
 # (Y up, the body facing +Z, its left at +X).
@@ -100,6 +101,8 @@ def run_demo(
     model_path: str | Path | None = None,
     model_type: str | None = None,
     gender: str = "neutral",
+    ext: str | None = None,
+    use_pca: bool | None = None,
     mesh_format: str = "obj",
     render: bool = True,
     width: int = 1200,
@@ -114,7 +117,11 @@ def run_demo(
     poses : names from :data:`NAMED_POSES` (default: a-pose, walk, wave, squat).
     pose_file : body poses to use instead of named ones (see :func:`load_pose_file`).
     betas : shape coefficients applied to every pose (default: a spread of shapes, one per pose).
-    model_path, model_type, gender : a user's model (default: the packaged open model).
+    model_path, model_type, gender, ext : a user's model (default: the packaged open model), found as
+        :func:`smplcore.create` finds it (``ext``: the file format to look for first, ``pkl`` or ``npz``).
+    use_pca : SMPL+H / SMPL-X: whether hand poses are PCA coefficients (default None: when the file has a
+        hand PCA; an AMASS SMPL+H ``.npz`` has none). The demo poses the body only, so this changes nothing
+        in the result; it only decides whether a file without a hand PCA can be used.
     mesh_format : ``obj`` or ``ply``.
     render : write the PNG (needs pyrender and an offscreen OpenGL: EGL or OSMesa).
     texture : for a model with a UV map (the open model, SMPL-X): an image file drawn on the body, in the
@@ -123,13 +130,20 @@ def run_demo(
     """
     from smplcore.export.mesh import save_mesh
     from smplcore.export.uv import model_uv, resolve_texture
+    from smplcore.io.locate import read_model
     from smplcore.numpy_model import BodyModel
 
     if mesh_format not in ("obj", "ply"):
         raise ValueError(f"mesh_format: expected 'obj' or 'ply', got {mesh_format!r}")
     if model_path is None and model_type is None:
         model_type = "open"
-    model = BodyModel(model_path, model_type, gender=gender)
+    data = read_model(model_path, model_type, gender=gender, ext=ext)
+    options: dict[str, Any] = {}
+    if get_spec(data.model_type).hand_blocks:
+        options["use_pca"] = _has_hand_pca(data) if use_pca is None else bool(use_pca)
+        if getattr(data, "hands_mean_left", None) is None:
+            options["flat_hand_mean"] = True  # no mean hand pose in the file (AMASS's): flat, without a warning
+    model = BodyModel(data=data, **options)
     if model.model_type not in ("smpl", "open", "smplh", "smplx"):
         raise ValueError(f"the demo poses bodies; a {model.model_type!r} model has no SMPL body pose")
     if pose_file is not None:
@@ -163,9 +177,9 @@ def run_demo(
         from smplcore.render import render_to_png
 
         image_path = render_to_png(
+            out_dir / "body.png",
             _spread_on_floor(vertices),
             model.faces,
-            out_dir / "body.png",
             width=width,
             height=height,
             camera="three_quarter",
@@ -179,6 +193,12 @@ def run_demo(
         model.faces,
         texture_path,
     )
+
+
+def _has_hand_pca(data: Any) -> bool:
+    """Whether the model file holds a (non-empty) PCA basis for both hands."""
+    comps = [getattr(data, f"hands_components_{side}", None) for side in ("left", "right")]
+    return all(c is not None and np.size(c) > 0 for c in comps)
 
 
 def _demo_betas(betas: Any, count: int, num_betas: int) -> np.ndarray:

@@ -53,6 +53,20 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--gender", default=None, help="model gender (default: the motion's, else neutral)")
     parser.add_argument(
+        "--ext",
+        choices=("pkl", "npz"),
+        default=None,
+        help="model file format to look for first in a folder (default: smplx's, npz for SMPL-X, pkl for the "
+        "others); the other format is used when only it is there",
+    )
+    parser.add_argument(
+        "--use-pca",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="SMPL+H / SMPL-X: hand poses as PCA coefficients (default: no for motions, which store axis-angle; "
+        "for parameter sets, yes unless the hand poses have 45 values)",
+    )
+    parser.add_argument(
         "--num-betas",
         type=int,
         default=None,
@@ -170,9 +184,15 @@ def _build_model(args: argparse.Namespace, source: Any) -> Any:
             expr = np.asarray(source["expression"])
             options["num_expression_coeffs"] = int(expr.shape[-1]) if expr.ndim else 1
     options["num_betas"] = args.num_betas if args.num_betas is not None else max(int(betas.shape[0]), 1)
+    use_pca = getattr(args, "use_pca", None)
+    if use_pca is not None:
+        options["use_pca"] = bool(use_pca)
+        if not use_pca:
+            options.pop("num_pca_comps", None)
     if args.model_path is None and args.model_type in (None, "open"):
         return BodyModel(model_type="open", **options)
-    return BodyModel(args.model_path, model_type=args.model_type, gender=gender, **options)
+    ext = getattr(args, "ext", None)
+    return BodyModel(args.model_path, model_type=args.model_type, gender=gender, ext=ext, **options)
 
 
 def _progress_bar(total: int, disable: bool):
@@ -204,6 +224,12 @@ def run(args: argparse.Namespace) -> int:
     source = load_input(args.input, fps=args.fps)  # the rate of a motion that states none
     frames = _frame_slice(args.frames)
     if frames is not None:
+        total = source.num_frames if isinstance(source, Motion) else _count(source)
+        if not range(total)[frames]:
+            what = "motion" if isinstance(source, Motion) else "parameter set"
+            raise ValueError(
+                f"--frames: {args.frames} selects no frame; the {what} {args.input} has {total} frame(s) (0:{total})"
+            )
         source = (
             source.slice(frames.start or 0, frames.stop, frames.step or 1)
             if isinstance(source, Motion)

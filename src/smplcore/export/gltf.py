@@ -29,12 +29,12 @@ truncation.
 from __future__ import annotations
 
 import dataclasses
-import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from smplcore.errors import warn
 from smplcore.export.animation import (
     Animation,
     ExportReport,
@@ -143,12 +143,9 @@ def save_glb(
     :class:`ExportReport` with the top-4 truncation error (max / mean vertex displacement against
     full-weight skinning over all frames) and, for models with pose correctives, what they would add.
     """
-    try:
-        import pygltflib
-    except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise RuntimeError(
-            f"save_glb needs pygltflib ({exc}); install it with `pip install 'smplcore[export]'`"
-        ) from exc
+    from smplcore._deps import require
+
+    pygltflib = require("pygltflib", "save_glb", "export")
 
     if influences not in (4, 8):
         raise ValueError(f"influences: expected 4 or 8, got {influences!r}")
@@ -180,7 +177,7 @@ def save_glb(
             "(it matches the model evaluated without pose correctives)"
         )
         notes.append(message)
-        warnings.warn(message, stacklevel=2)
+        warn(message)
 
     gltf = pygltflib.GLTF2()
     gltf.asset = pygltflib.Asset(version="2.0", generator=f"smplcore {_version()} (pygltflib)")
@@ -269,7 +266,7 @@ def save_glb(
             "(--morph-targets); the mesh shows the neutral expression"
         )
         notes.append(message)
-        warnings.warn(message, stacklevel=2)
+        warn(message)
 
     primitive = pygltflib.Primitive(
         attributes=pygltflib.Attributes(**attributes),

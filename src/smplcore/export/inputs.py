@@ -5,14 +5,13 @@ package's one AMASS reader (:func:`smplcore.motion.motion_from_arrays`)."""
 from __future__ import annotations
 
 import json
-import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from smplcore.errors import ModelFileError, ShapeError
+from smplcore.errors import ModelFileError, ShapeError, warn
 
 __all__ = ["load_input"]
 
@@ -94,7 +93,7 @@ def _motion_input(arrays: Mapping[str, Any], source: str | Path = "<memory>", *,
 
 def _notify(notes: list[str], message: str) -> None:
     notes.append(message)
-    warnings.warn(message, stacklevel=3)
+    warn(message)
 
 
 def _fit_width(name: str, value: np.ndarray, width: int, notes: list[str]) -> np.ndarray:

@@ -110,12 +110,9 @@ def save_mesh(
         _write_textured_obj(out, verts, tris, colors, vt, ft, image)
         return out
 
-    try:
-        import trimesh
-    except ImportError as exc:
-        raise RuntimeError(
-            f"save_mesh needs trimesh ({exc}); install it with `pip install 'smplcore[export]'`"
-        ) from exc
+    from smplcore._deps import require
+
+    trimesh = require("trimesh", "save_mesh", "export")
 
     mesh = trimesh.Trimesh(vertices=verts, faces=tris, vertex_colors=colors, process=False, validate=False)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -118,10 +118,9 @@ def load_texture(path: str | os.PathLike) -> np.ndarray:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"texture: no such image file {str(path)!r}")
-    try:
-        from PIL import Image
-    except ImportError as exc:
-        raise RuntimeError(f"reading a texture needs Pillow ({exc}); install it with `pip install pillow`") from exc
+    from smplcore._deps import require
+
+    Image = require("PIL.Image", "reading a texture", "export")
     try:
         with Image.open(path) as img:
             mode = "RGBA" if img.mode in ("RGBA", "LA", "P") and "A" in img.getbands() else "RGB"
@@ -145,10 +144,9 @@ def encode_png(image: np.ndarray) -> bytes:
     """PNG bytes of an (H, W, 3|4) uint8 image (needs Pillow)."""
     import io
 
-    try:
-        from PIL import Image
-    except ImportError as exc:
-        raise RuntimeError(f"writing a texture needs Pillow ({exc}); install it with `pip install pillow`") from exc
+    from smplcore._deps import require
+
+    Image = require("PIL.Image", "writing a texture", "export")
     buf = io.BytesIO()
     Image.fromarray(_check_image("texture", image)).save(buf, format="PNG")
     return buf.getvalue()

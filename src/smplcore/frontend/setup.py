@@ -5,7 +5,6 @@ plain NumPy constants, the same for both front ends.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -14,7 +13,7 @@ import numpy as np
 
 from smplcore.engine import body as engine
 from smplcore.engine.backend import for_cache, index, namespace
-from smplcore.errors import ModelFileError, ShapeError
+from smplcore.errors import ModelFileError, ShapeError, warn
 from smplcore.family import names
 from smplcore.family.specs import FamilySpec, extra_joint_vertex_ids, get_spec
 from smplcore.io.model_data import ModelData
@@ -44,7 +43,7 @@ def warn_once(owner: str, message: str, key: str | None = None) -> None:
     token = (owner, key or message)
     if token not in _warned:
         _warned.add(token)
-        warnings.warn(message, stacklevel=4)
+        warn(message)
 
 
 @dataclass

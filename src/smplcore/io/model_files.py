@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import re
-import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from smplcore.errors import ModelFileError
+from smplcore.errors import ModelFileError, warn
 from smplcore.family.specs import MODEL_TYPE_BY_NUM_JOINTS, get_spec
 from smplcore.io.checks import Checker, check_index, check_parents
 from smplcore.io.containers import read_container
@@ -39,6 +38,14 @@ _KNOWN_UNUSED = {
     "joint_names",
     "e",
     "u",
+    # a body's parameters and chumpy's derived arrays, saved with the model by SMPLify and the chumpy SMPL
+    # code (``ready_arguments``): recomputed from the parameters at every call, never part of the model
+    "betas",
+    "pose",
+    "trans",
+    "v_shaped",
+    "v_posed",
+    "J_transformed",
 }
 _OFFICIAL_KEYS = {
     "v_template",
@@ -154,7 +161,8 @@ def _with_file_uv(data: ModelData, path: Path, raw: Mapping[str, Any]) -> ModelD
 
 
 def save_npz(data: ModelData, path: str | Path) -> Path:
-    """Write ``data`` as smplcore's pickle-free ``.npz`` (loads with ``np.load(allow_pickle=False)``)."""
+    """Write ``data`` as smplcore's pickle-free ``.npz`` (loads with ``np.load(allow_pickle=False)``); the parent
+    folders are created."""
     path = Path(path)
     arrays: dict[str, Any] = {"format": np.array(FORMAT_TAG)}
     for name in ("model_type", "gender"):
@@ -189,6 +197,7 @@ def save_npz(data: ModelData, path: str | Path) -> Path:
         arrays["extra_joint_vertex_ids"] = np.asarray(data.extra_joint_vertex_ids, dtype=np.int64)
     if path.suffix != ".npz":
         raise ValueError(f"path: smplcore model files end in .npz, got {path.name!r}")
+    path.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(path, **arrays)
     return path
 
@@ -232,7 +241,7 @@ def _official(c: Checker, model_type: str | None, gender: str | None) -> ModelDa
     path, raw = c.path, c.raw
     unknown = sorted(set(raw) - _OFFICIAL_KEYS - _KNOWN_UNUSED)
     if unknown:
-        warnings.warn(f"{path}: ignoring keys smplcore does not know: {unknown}", stacklevel=5)
+        warn(f"{path}: ignoring keys smplcore does not know: {unknown}")
 
     v_template = c.get("v_template")
     c.expect("v_template", v_template, (None, 3))

@@ -161,6 +161,10 @@ def run_process(args: argparse.Namespace) -> int:
     )
     from smplcore.motion.process import run as run_module
 
+    if args.backend == "torch":
+        from smplcore.motion.models import resolve_backend
+
+        resolve_backend("torch")  # without PyTorch: one line and exit 2, before any file is tried
     options = options_from_recipe(
         args.recipe,
         model_path=args.model_path,

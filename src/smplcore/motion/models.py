@@ -1,7 +1,7 @@
 """The body model a motion file names, found in a folder, loaded once, and evaluated in batches.
 
-A motion says its model type (SMPL+H, SMPL-X, ...) and its gender; :func:`model_file` finds the
-matching file (through :mod:`smplcore.io.locate`) in a model folder laid out either like smplx
+A motion says its model type (SMPL+H, SMPL-X, ...) and its gender; :mod:`smplcore.io.locate` (the one
+locator) finds the matching file in a model folder laid out either like smplx
 (``models/smplh/SMPLH_FEMALE.npz``) or like AMASS (``body_models/smplh/female/model.npz``).
 :class:`ModelCache` keeps one loaded model per (model type, gender), and :class:`Evaluator` turns a
 :class:`~smplcore.motion.Motion` into joints (and vertices) in chunks of frames, with NumPy or, when
@@ -16,9 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from smplcore.errors import ModelFileError
 from smplcore.family.specs import get_spec
-from smplcore.io.open_model import open_model_path
 
 GENDERS = ("neutral", "male", "female")
 _GENDER_ALIASES = {
@@ -56,50 +54,6 @@ def pick_gender(file_gender: str, rule: str = "file") -> str:
     if rule == "humanml3d":
         return "male" if g == "male" else "female"
     return g
-
-
-def model_file(model_path: str | Path | None, model_type: str, gender: str = "neutral", ext: str | None = None) -> Path:
-    """The model file for ``model_type`` and ``gender``: :func:`smplcore.io.locate.locate_model_file` (the one
-    locator), for ``ext`` or, when None, for ``npz`` then ``pkl``; then, in a folder, the AMASS /
-    human_body_prior layout ``folder/[T/]g/model.ext``, which the locator does not know yet.
-
-    ``model_path`` is a model file (used for every gender), a folder, or None for the packaged open
-    model (``model_type="open"``).
-
-    Raises
-    ------
-    ModelFileError
-        naming the folder, the model type, the gender and the paths tried.
-    """
-    from smplcore.io.locate import locate_model_file
-
-    spec = get_spec(model_type)
-    if model_path is None or str(model_path) == "":
-        if spec.model_type == "open":
-            return open_model_path(gender)
-        raise ValueError(
-            f"model_path: a {spec.display_name} model file or folder is needed "
-            "(or model_type='open' for the packaged open model)"
-        )
-    path = Path(model_path).expanduser()
-    if not path.exists():
-        raise ModelFileError(path, "no such file or folder")
-    g = normalize_gender(gender)
-    exts = [ext.lstrip(".").lower()] if ext else ["npz", "pkl"]
-    tried: list[str] = []
-    for e in exts:
-        try:
-            return locate_model_file(path, spec.model_type, gender=g, ext=e)
-        except ModelFileError as exc:
-            tried.append(
-                str(Path(exc.path).relative_to(path)) if Path(exc.path).is_relative_to(path) else str(exc.path)
-            )
-    amass = [base / g / f"model.{e}" for base in (path / spec.model_type, path) for e in exts]
-    for candidate in amass:  # TODO(io/locate): move this layout into locate_model_file
-        if candidate.is_file():
-            return candidate
-    tried += [str(c.relative_to(path)) for c in amass]
-    raise ModelFileError(path, f"no {g} {spec.display_name} model (tried {', '.join(tried)})")
 
 
 @dataclass
@@ -143,13 +97,17 @@ def resolve_backend(backend: str, vertices: bool = False) -> str:
     if backend not in ("numpy", "torch"):
         raise ValueError(f"backend: expected 'auto', 'numpy' or 'torch', got {backend!r}")
     if backend == "torch" and not torch_available():
-        raise ValueError("backend: 'torch' asked, but PyTorch is not installed (pip install smplcore[torch])")
+        raise ValueError(
+            "backend: 'torch' asked, but PyTorch is not installed; install it with: pip install torch==2.13.0, "
+            "or use --backend numpy"
+        )
     return backend
 
 
 @dataclass
 class ModelCache:
-    """One loaded model per (model type, gender), as found by :func:`model_file`.
+    """One loaded model per (model type, gender), as found by :func:`smplcore.io.locate.locate_model_file`
+    (``ext`` None: ``npz`` first, AMASS's format, then ``pkl``).
 
     Models are evaluated as AMASS poses need: ``use_pca=False, flat_hand_mean=True`` (absolute
     hand poses). ``num_betas`` None keeps every shape component the file holds.
@@ -164,6 +122,7 @@ class ModelCache:
     models: dict[tuple[str, str], LoadedModel] = field(default_factory=dict)
 
     def get(self, model_type: str, gender: str) -> LoadedModel:
+        from smplcore.io.locate import locate_model_file
         from smplcore.io.model_files import load_model
         from smplcore.numpy_model import BodyModel
 
@@ -173,7 +132,7 @@ class ModelCache:
         key = (spec.model_type, "any" if fixed else normalize_gender(gender))
         if key in self.models:
             return self.models[key]
-        path = model_file(self.model_path, key[0], "neutral" if fixed else key[1], self.ext)
+        path = locate_model_file(self.model_path, key[0], gender="neutral" if fixed else key[1], ext=self.ext or "npz")
         data = load_model(
             path,
             model_type=None if spec.model_type == "open" else spec.model_type,

@@ -181,9 +181,9 @@ def _import_pyrender():
         import pyrender
         import trimesh
     except ModuleNotFoundError as exc:
-        raise RuntimeError(
-            f"rendering needs pyrender and trimesh ({exc}); install them with `pip install 'smplcore[render]'`"
-        ) from exc
+        from smplcore._deps import missing
+
+        raise missing(exc.name or "pyrender", "rendering", "render", str(exc)) from None
     except Exception as exc:  # PyOpenGL raises ImportError & co. when the platform library is missing
         raise RuntimeError(_context_help(exc)) from exc
     return pyrender, trimesh
@@ -391,10 +391,9 @@ def save_png(image: Any, path: str | os.PathLike) -> Path:
 
     ``image`` is uint8 (H, W), (H, W, 3) or (H, W, 4), e.g. what :func:`render_mesh` returns.
     """
-    try:
-        from PIL import Image
-    except ImportError as exc:
-        raise RuntimeError(f"save_png needs Pillow ({exc}); install it with `pip install pillow`") from exc
+    from smplcore._deps import require
+
+    Image = require("PIL.Image", "save_png", "render")
     arr = as_array("image", image)
     if not (arr.ndim == 2 or (arr.ndim == 3 and arr.shape[2] in (3, 4))) or arr.shape[0] < 1 or arr.shape[1] < 1:
         raise _ShapeError(f"image: expected shape (H, W), (H, W, 3) or (H, W, 4), got {tuple(arr.shape)}")
@@ -408,9 +407,29 @@ def save_png(image: Any, path: str | os.PathLike) -> Path:
     return out
 
 
-def render_to_png(vertices: Any, faces: Any, path: str | os.PathLike, **kwargs: Any) -> Path:
-    """:func:`render_mesh` (same keyword arguments) and :func:`save_png` in one call; returns the path."""
+def render_to_png(path: str | os.PathLike, vertices: Any, faces: Any, **kwargs: Any) -> Path:
+    """:func:`render_mesh` (same keyword arguments) and :func:`save_png` in one call; returns the path.
+
+    The path comes first, as in :func:`smplcore.export.save_mesh` and :func:`smplcore.export.save_glb`.
+    The earlier order ``render_to_png(vertices, faces, path)`` still works (a path is never an array, so the
+    two cannot be confused) and warns with a ``DeprecationWarning``.
+    """
+    if not _is_path(path) and _is_path(faces):
+        from smplcore.errors import warn
+
+        warn(
+            "render_to_png(vertices, faces, path) is deprecated: pass the path first, "
+            "render_to_png(path, vertices, faces), as save_mesh and save_glb take it",
+            DeprecationWarning,
+        )
+        path, vertices, faces = faces, path, vertices
+    elif not _is_path(path):
+        raise TypeError(f"path: expected a file name (str or os.PathLike) first, got {type(path).__name__}")
     out = Path(path)
     if out.suffix.lower() != ".png":  # fail before the (slow) render
         raise ValueError(f"path: expected a file name ending in .png, got {str(out)!r}")
     return save_png(render_mesh(vertices, faces, **kwargs), out)
+
+
+def _is_path(value: Any) -> bool:
+    return isinstance(value, (str, os.PathLike))

@@ -1,15 +1,15 @@
-"""Optional dependencies of :mod:`smplcore.view`, imported where used, with one clear error when missing."""
+"""Optional dependencies of :mod:`smplcore.view` (see :mod:`smplcore._deps`): the extra is ``view``."""
 
 from __future__ import annotations
 
 import importlib
 from types import ModuleType
 
-INSTALL_HINT = 'pip install "smplcore[view]"'
+from smplcore._deps import MissingDependencyError, install_hint, missing
 
+INSTALL_HINT = install_hint("view")
 
-class MissingDependencyError(ImportError):
-    """An optional dependency of the viewer or the video writer is not installed; the message says what to install."""
+__all__ = ["INSTALL_HINT", "MissingDependencyError", "require"]
 
 
 def require(module: str, purpose: str, extra: str = "view") -> ModuleType:
@@ -17,6 +17,4 @@ def require(module: str, purpose: str, extra: str = "view") -> ModuleType:
     try:
         return importlib.import_module(module)
     except ImportError as exc:
-        raise MissingDependencyError(
-            f'{purpose} needs {module.split(".")[0]} ({exc}); install it with: pip install "smplcore[{extra}]"'
-        ) from None
+        raise missing(module, purpose, extra, str(exc)) from None

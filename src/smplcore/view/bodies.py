@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from smplcore.errors import ModelFileError
+from smplcore.errors import ModelFileError, warn
 from smplcore.view.sources import Source
 
 MODEL_TYPES = ("open", "smpl", "smplh", "smplx", "mano", "flame")
@@ -63,9 +63,7 @@ def _fit(name: str, value: np.ndarray, width: int) -> np.ndarray:
     if n == width:
         return value
     if n > width:
-        warnings.warn(
-            f"{name}: the input has {n} coefficients, the model takes {width}; dropping the rest", stacklevel=3
-        )
+        warn(f"{name}: the input has {n} coefficients, the model takes {width}; dropping the rest")
         return value[..., :width]
     pad = np.zeros((*value.shape[:-1], width - n), dtype=value.dtype)
     return np.concatenate([value, pad], axis=-1)

@@ -138,6 +138,7 @@ def render_video(
     from smplcore.render import CAMERAS, render_mesh
 
     ffmpeg = require("imageio_ffmpeg", "writing videos")
+    _check_installed("pyrender", "writing videos")  # before the writer opens (not imported: OpenGL comes later)
     out = Path(output)
     suffix = _check_output(out, width, height)
     if camera not in CAMERA_MODES:
@@ -244,3 +245,17 @@ def _camera_boxes(
     half = 0.5 * (hi - lo).max(axis=0)
     centre = _smooth(0.5 * (lo + hi), max(1, int(round(_SMOOTH_SECONDS * fps))))
     return np.stack([centre - half, centre + half], axis=1)
+
+
+def _check_installed(module: str, purpose: str) -> None:
+    """Raise :class:`MissingDependencyError` (extra ``view``) when ``module`` is not installed, without importing it."""
+    import importlib.util
+
+    from smplcore._deps import missing
+
+    try:
+        found = importlib.util.find_spec(module) is not None
+    except (ImportError, ValueError):  # ValueError: a None placeholder in sys.modules
+        found = False
+    if not found:
+        raise missing(module, purpose, "view")

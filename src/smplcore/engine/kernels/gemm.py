@@ -22,10 +22,10 @@ from __future__ import annotations
 
 import os
 import sys
-import warnings
 from typing import Any
 
 from smplcore.engine.backend import is_torch
+from smplcore.errors import warn
 
 # SMPLCORE_ONEDNN=0 turns packing off (plain torch.mm everywhere), e.g. to compare the two.
 _ENV = "SMPLCORE_ONEDNN"
@@ -72,11 +72,7 @@ def _onednn_works() -> bool:
             except Exception as exc:  # any failure of a private op means: don't use it
                 reason = f"torch's oneDNN packed product failed on a check ({type(exc).__name__}: {exc})"
         if not ok and reason is not None:
-            warnings.warn(
-                f"smplcore: {reason}; using plain torch.mm products ({_ENV}=0 skips the check)",
-                RuntimeWarning,
-                stacklevel=3,
-            )
+            warn(f"smplcore: {reason}; using plain torch.mm products ({_ENV}=0 skips the check)", RuntimeWarning)
         _checked["onednn"] = ok
     return _checked["onednn"]
 

@@ -220,7 +220,9 @@ def _run_ray(
     try:
         import ray
     except ImportError:
-        raise ProcessError("--ray needs Ray, an optional dependency: pip install 'ray'") from None
+        raise ProcessError(
+            '--ray needs Ray, which is not installed; install it with: pip install "smplcore[ray]"'
+        ) from None
     started = False
     if not ray.is_initialized():
         kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}

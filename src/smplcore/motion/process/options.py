@@ -27,7 +27,7 @@ class ProcessOptions:
 
     Attributes
     ----------
-    model_path : model file or folder (see :func:`smplcore.motion.models.model_file`); None
+    model_path : model file or folder (see :func:`smplcore.io.locate.locate_model_file`); None
         for the packaged open model.
     model_type : model to evaluate; None: the type the motion file names (``open`` without a
         ``model_path``). Another type is driven joint by joint by name (e.g. SMPL+H data on ``open``).

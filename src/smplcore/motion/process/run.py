@@ -5,11 +5,11 @@ from __future__ import annotations
 import contextlib
 import shutil
 import time
-import warnings
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
+from smplcore.errors import warn
 from smplcore.motion.process import preflight
 from smplcore.motion.process.executors import _run_inline, _run_pool, _run_ray, available_cpus
 from smplcore.motion.process.manifest import (
@@ -302,6 +302,4 @@ def _warn_size(todo: list[Task], options: ProcessOptions, output_dir: Path, warn
         free: int | None = shutil.disk_usage(output_dir).free
     except OSError:
         free = None
-    warnings.warn(
-        preflight.OutputSizeWarning(preflight.size_message(estimate, output_dir, len(todo), free)), stacklevel=4
-    )
+    warn(preflight.OutputSizeWarning(preflight.size_message(estimate, output_dir, len(todo), free)))
