@@ -53,6 +53,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--gender", default=None, help="model gender (default: the motion's, else neutral)")
     parser.add_argument(
+        "--dmpl",
+        default=None,
+        metavar="FILE",
+        help="DMPL soft-tissue blend shapes (dmpl.npz) driven by the input's dmpls: baked into .obj/.ply, "
+        "animated morph targets in .glb",
+    )
+    parser.add_argument(
         "--num-betas",
         type=int,
         default=None,
@@ -167,6 +174,8 @@ def _build_model(args: argparse.Namespace, source: Any) -> Any:
             expr = np.asarray(source["expression"])
             options["num_expression_coeffs"] = int(expr.shape[-1]) if expr.ndim else 1
     options["num_betas"] = args.num_betas if args.num_betas is not None else max(int(betas.shape[0]), 1)
+    if getattr(args, "dmpl", None):
+        options["dmpl_path"] = args.dmpl
     if args.model_path is None and args.model_type in (None, "open"):
         return BodyModel(model_type="open", **options)
     return BodyModel(args.model_path, model_type=args.model_type, gender=gender, **options)
@@ -265,9 +274,11 @@ def _write_mesh(
     if isinstance(source, Motion):
         total = source.num_frames
         params = source.model_params(model.model_type, model.skeleton_joint_names)
+        if model.num_dmpls and source.dmpls is not None:
+            params["dmpls"] = np.asarray(source.dmpls)[:, : model.num_dmpls]
     else:
         total = _count(source)
-        allowed = set(model.pose_blocks) | {"betas", "expression", "transl"}
+        allowed = set(model.pose_blocks) | {"betas", "expression", "transl"} | ({"dmpls"} if model.num_dmpls else set())
         params = {k: np.asarray(v) for k, v in source.items() if k in allowed}
     k = args.frame if args.frame >= 0 else total + args.frame
     if not 0 <= k < total:
