@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+import warnings
 from pathlib import Path
 
 from smplcore.errors import ModelFileError
@@ -9,6 +11,14 @@ from smplcore.family.specs import get_spec
 from smplcore.io.open_model import open_model_path  # noqa: E402
 
 OPEN_MODEL_PATH = open_model_path("neutral")
+
+
+def _outside_smplcore() -> int:
+    """The ``stacklevel`` at which a warning issued by the caller points at the first frame outside smplcore."""
+    frame, level = sys._getframe(2), 2
+    while frame is not None and str(frame.f_globals.get("__name__", "")).split(".")[0] == "smplcore":
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 def default_ext(model_type: str) -> str:
@@ -47,6 +57,11 @@ def locate_model_file(
         raise ValueError(f"model_type: {path} is a folder; say which model type to load from it")
     spec = get_spec(model_type)
     if spec.model_type == "open":
+        warnings.warn(
+            f"model_path: {str(path)!r} is a folder, which model_type='open' ignores: the packaged open model is "
+            "used; pass no model_path (or the path of an open-model .npz file) to silence this",
+            stacklevel=_outside_smplcore(),
+        )
         return open_model_path(gender)
     folder = path / spec.model_type if (path / spec.model_type).is_dir() else path
     ext = (ext or default_ext(spec.model_type)).lstrip(".").lower()

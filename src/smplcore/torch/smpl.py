@@ -102,7 +102,7 @@ class SMPL(nn.Module):
         self.kernel = check_kernel(kernel)
         self.check_finite, self.check_rotations = bool(check_finite), bool(check_rotations)
         self.dtype = dtype
-        self.gender = gender
+        self.gender = data.gender if spec.model_type == "open" else gender  # the open model's: normalised
         self.age = setup_opts.get("age", SETUP_OPTIONS["age"])
         self.batch_size = batch_size
         self.joint_mapper = joint_mapper
