@@ -267,3 +267,22 @@ def _frame(motion, model, k):
 
 def _report_warnings(capsys):
     return [line for line in capsys.readouterr().out.splitlines() if line.startswith("warning:")]
+
+
+@pytest.mark.parametrize("skeleton_only", [False, True])
+def test_motion_evaluator_torch_backend_agrees(fake_models, dmpl_file, tmp_path, skeleton_only):
+    from smplcore.motion import Evaluator, ModelCache, load_motion
+    from smplcore.motion.synthetic import write_sequence
+
+    motion = load_motion(write_sequence(tmp_path / "a_poses.npz", frames=20, fps=30.0, gender="female"))
+    model_file = fake_models["smplh_female_npz"]
+    out = {}
+    for backend in ("numpy", "torch"):
+        loaded = ModelCache(model_file, backend=backend, dmpl_path=dmpl_file).get("smplh", "female")
+        out[backend] = Evaluator().run(motion, loaded, vertices=not skeleton_only, skeleton_only=skeleton_only)
+    np.testing.assert_allclose(out["torch"][0], out["numpy"][0], atol=1e-5)
+    plain = ModelCache(model_file, backend="numpy").get("smplh", "female")
+    without = Evaluator().run(motion, plain, vertices=not skeleton_only, skeleton_only=skeleton_only)[0]
+    assert np.abs(out["numpy"][0] - without).max() > 1e-4  # the soft tissue moves the joints
+    if not skeleton_only:
+        np.testing.assert_allclose(out["torch"][1], out["numpy"][1], atol=1e-5)
