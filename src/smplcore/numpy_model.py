@@ -53,6 +53,8 @@ class BodyModel:
     check_rotations : with ``pose2rot=False``, refuse matrices that are not rotations (default True).
     uv_path : a UV map ``.obj`` for the model's mesh (as SMPL distributes it); files that carry ``vt``/``ft``
         (SMPL-X, the open model) need none.
+    dmpl_path : a DMPL file (``dmpl.npz`` with ``eigvec`` (V, 3, n), as AMASS ships it) for any model of
+        the same vertex count; the forward then takes ``dmpls`` (B, n), added to the shaped template.
 
     Examples
     --------
@@ -120,6 +122,11 @@ class BodyModel:
         return self.setup.num_expression_coeffs
 
     @property
+    def num_dmpls(self) -> int:
+        """DMPL coefficients ``dmpls`` takes (0 without ``dmpl_path``)."""
+        return self.setup.num_dmpls
+
+    @property
     def joint_names(self) -> list[str]:
         """Names of ``output.joints``, in order."""
         return self.setup.output_joint_names
@@ -144,10 +151,11 @@ class BodyModel:
         """Whether the model has (non-zero) pose-corrective blend shapes."""
         return self.arrays.has_pose_correctives
 
-    def rest_pose(self, betas: Any = None, expression: Any = None) -> tuple[np.ndarray, np.ndarray]:
+    def rest_pose(self, betas: Any = None, expression: Any = None, dmpls: Any = None) -> tuple[np.ndarray, np.ndarray]:
         """The shaped body before posing: vertices (V, 3) and skeleton joints (J, 3) for one body.
 
-        ``betas`` / ``expression`` are 1-D (or (1, n)); narrower than the model's count is zero-padded.
+        ``betas`` / ``expression`` / ``dmpls`` are 1-D (or (1, n)); narrower than the model's count is
+        zero-padded.
         """
         from smplcore.engine import body as engine
 
@@ -155,8 +163,9 @@ class BodyModel:
         for name, value, width in (
             ("betas", betas, self.num_betas),
             ("expression", expression, self.num_expression_coeffs),
+            ("dmpls", dmpls, self.num_dmpls),
         ):
-            if name == "expression" and not self.setup.spec.has_expression:
+            if (name == "expression" and not self.setup.spec.has_expression) or (name == "dmpls" and not width):
                 continue
             value = np.zeros((1, width), self.dtype) if value is None else np.asarray(value, self.dtype)
             coeffs.append(rows(name, value, 1, width, allow_narrower=True))
@@ -171,11 +180,12 @@ class BodyModel:
     def __call__(self, *, pose2rot: bool = True, return_verts: bool = True, **params: Any) -> BodyOutput:
         """Pose the model.
 
-        Keyword arguments are ``betas``, ``expression``, ``transl`` and the pose blocks
-        (:attr:`pose_blocks`), as NumPy arrays (or anything ``np.asarray`` takes); batch 1
-        broadcasts. With ``pose2rot=False`` pose blocks are rotation matrices (B, n, 3, 3).
+        Keyword arguments are ``betas``, ``expression``, ``transl``, the pose blocks
+        (:attr:`pose_blocks`) and, for a model created with ``dmpl_path``, ``dmpls`` (B, n), as NumPy
+        arrays (or anything ``np.asarray`` takes); batch 1 broadcasts. With ``pose2rot=False`` pose
+        blocks are rotation matrices (B, n, 3, 3).
         """
-        allowed = set(self.pose_blocks) | {"betas", "expression", "transl"}
+        allowed = set(self.pose_blocks) | {"betas", "expression", "transl", "dmpls"}
         for name in sorted(set(params) - allowed):
             warn_once("BodyModel.__call__", f"BodyModel: ignoring unknown keyword argument {name!r}", key=name)
         arrays = {k: None if v is None else _as_array(k, v, self.dtype) for k, v in params.items() if k in allowed}

@@ -135,7 +135,8 @@ class BodyArrays:
 
 def _with_one(coeffs: Any) -> Any:
     xp = namespace(coeffs)
-    return xp.concat([xp.ones_like(coeffs[:, :1]), coeffs], axis=1)
+    one = xp.ones_like(coeffs[:, :1]) if coeffs.shape[1] else coeffs.sum(axis=1, keepdims=True) + 1  # K = 0 too
+    return xp.concat([one, coeffs], axis=1)
 
 
 def blend_features(coeffs: Any, rotmats: Any | None, arrays: BodyArrays) -> Any:

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from smplcore.errors import ShapeError
+from smplcore.export.soft_tissue import dmpls_of
 
 __all__ = [
     "Animation",
@@ -78,6 +79,8 @@ class Animation:
     betas : (S,) the shape coefficients as used (matching the model's ``num_betas``).
     expression : (T, E) per-frame expression coefficients, or None for models without expressions.
     base_expression : (E,) the expression baked into ``rest_vertices`` (the constant expression, or zeros).
+    dmpls : (T, n) per-frame DMPL soft-tissue coefficients (a model with ``dmpl_path`` and an input that
+        has them), else None; ``rest_vertices`` and ``rest_joints`` are without soft tissue.
     model_type : the model's type.
     source : where the input came from.
     notes : warnings raised while preparing (also issued with :func:`warnings.warn`).
@@ -95,6 +98,7 @@ class Animation:
     betas: np.ndarray
     expression: np.ndarray | None = None
     base_expression: np.ndarray | None = None
+    dmpls: np.ndarray | None = None
     model_type: str = ""
     source: str = "<memory>"
     notes: list[str] = field(default_factory=list)
@@ -262,6 +266,7 @@ def prepare_animation(
     rest_vertices, rest_joints = model.rest_pose(betas, base_expression)
     rest_vertices = np.asarray(rest_vertices, dtype=np.float64)
     rest_joints = np.asarray(rest_joints, dtype=np.float64)
+    dmpls = dmpls_of(model, source, rotations.shape[0])
     if expression is not None and base_expression is not None and not constant:
         regressor = np.asarray(model.setup.data.J_regressor, dtype=np.float64)
         joint_dirs = np.einsum("jv,vdk->kjd", regressor, np.asarray(model.setup.exprdirs, np.float64))
@@ -285,6 +290,7 @@ def prepare_animation(
         betas=betas,
         expression=expression,
         base_expression=base_expression,
+        dmpls=dmpls,
         model_type=model.model_type,
         source=origin,
         notes=notes,
@@ -328,6 +334,7 @@ def _joint_names_of(model_type: str) -> list[str]:
 
 def _from_params(model: Any, source: Mapping[str, Any], notes: list[str], progress: Progress | None):
     allowed = set(model.pose_blocks) | {"betas", "expression", "transl"}
+    allowed |= {"dmpls"} if getattr(model, "num_dmpls", 0) else set()
     meta = {"fps", "mocap_framerate", "mocap_frame_rate", "gender", "model_type", "surface_model_type"}
     unknown = sorted(set(source) - allowed - meta)
     if unknown:
@@ -345,6 +352,7 @@ def _from_params(model: Any, source: Mapping[str, Any], notes: list[str], progre
     else:
         params.pop("expression", None)
     frames = _frames_of({**params, **({} if expression is None else {"expression": expression})})
+    params.pop("dmpls", None)  # soft tissue does not move the skeleton's rotations (read by dmpls_of)
     transl = params.pop("transl", np.zeros((1, 3))).reshape(-1, 3)
     if transl.shape[0] not in (1, frames):
         raise ShapeError(f"transl: expected shape ({frames}, 3) or (1, 3), got {transl.shape}")

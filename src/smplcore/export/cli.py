@@ -67,6 +67,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "for parameter sets, yes unless the hand poses have 45 values)",
     )
     parser.add_argument(
+        "--dmpl",
+        default=None,
+        metavar="FILE",
+        help="DMPL soft-tissue blend shapes (dmpl.npz) driven by the input's dmpls: baked into .obj/.ply, "
+        "animated morph targets in .glb",
+    )
+    parser.add_argument(
         "--num-betas",
         type=int,
         default=None,
@@ -189,6 +196,8 @@ def _build_model(args: argparse.Namespace, source: Any) -> Any:
         options["use_pca"] = bool(use_pca)
         if not use_pca:
             options.pop("num_pca_comps", None)
+    if getattr(args, "dmpl", None):
+        options["dmpl_path"] = args.dmpl
     if args.model_path is None and args.model_type in (None, "open"):
         return BodyModel(model_type="open", **options)
     ext = getattr(args, "ext", None)
@@ -294,9 +303,11 @@ def _write_mesh(
     if isinstance(source, Motion):
         total = source.num_frames
         params = source.model_params(model.model_type, model.skeleton_joint_names)
+        if model.num_dmpls and source.dmpls is not None:
+            params["dmpls"] = np.asarray(source.dmpls)[:, : model.num_dmpls]
     else:
         total = _count(source)
-        allowed = set(model.pose_blocks) | {"betas", "expression", "transl"}
+        allowed = set(model.pose_blocks) | {"betas", "expression", "transl"} | ({"dmpls"} if model.num_dmpls else set())
         params = {k: np.asarray(v) for k, v in source.items() if k in allowed}
     k = args.frame if args.frame >= 0 else total + args.frame
     if not 0 <= k < total:

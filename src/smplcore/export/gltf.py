@@ -19,7 +19,9 @@ The file holds one scene with
   for models with expressions, one per expression coefficient (``expr_0``, ...), named in
   ``mesh.extras.targetNames``. The body shape is baked into the base mesh, so shape targets rest at
   weight 0 (they are edits relative to the exported body; the skeleton does not follow them);
-  expression weights are animated as the difference to the expression baked into the base mesh.
+  expression weights are animated as the difference to the expression baked into the base mesh;
+* DMPL soft tissue (a model with ``dmpl_path``, an input with ``dmpls``): always morph targets
+  ``dmpl_0`` ..., their weights animated with the per-frame coefficients.
 
 glTF skinning then reproduces the model's linear blend skinning without pose correctives: exactly
 (to float32) with all weights kept, and within the error :class:`ExportReport` gives for the top-4
@@ -53,6 +55,7 @@ from smplcore.export.gltf_buffer import (
     USHORT,
     BufferBuilder,
 )
+from smplcore.export.soft_tissue import dmpl_joint_shift
 from smplcore.export.uv import TextureInput, encode_png, model_uv, resolve_texture, split_seams
 
 __all__ = ["save_glb"]
@@ -260,7 +263,27 @@ def save_glb(
                         )
                     }
                 )
-    elif anim.expression_varies:
+    dmpl_slot = None
+    if anim.dmpls is not None and getattr(model.setup, "dmpldirs", None) is not None:
+        # soft tissue changes every frame: always morph targets (dmpl_0, ...), weights animated below
+        dmpl_slot = len(targets)
+        dmpl_dirs = np.asarray(model.setup.dmpldirs, dtype=np.float64)
+        for k in range(dmpl_dirs.shape[2]):
+            target_names.append(f"dmpl_{k}")
+            targets.append(
+                {
+                    "POSITION": build.accessor(
+                        dmpl_dirs[ids, :, k], _FLOAT, target=_ARRAY_BUFFER, bounds=True, name=f"dmpl_{k}"
+                    )
+                }
+            )
+        shift = dmpl_joint_shift(model, anim.dmpls)
+        if shift > 1e-6:
+            notes.append(
+                f"dmpls move the model's joints by up to {shift * 1000:.2f} mm; the exported skeleton uses the "
+                "joints without soft tissue"
+            )
+    if not morph_targets and anim.expression_varies:
         message = (
             "the input's expression changes over time, which needs morph targets: pass morph_targets=True "
             "(--morph-targets); the mesh shows the neutral expression"
@@ -339,10 +362,14 @@ def save_glb(
     add_channel(0, "translation", build.accessor(anim.root_positions, _FLOAT, name="root_translation"))
     for j in range(num_joints):
         add_channel(j, "rotation", build.accessor(quats[:, j], _FLOAT, name=f"rotation_{anim.joint_names[j]}"))
-    expression, base = anim.expression, anim.base_expression  # both set for a model with expressions
-    if expression_slot is not None and expression is not None and base is not None and anim.expression_varies:
+    if (expression_slot is not None and anim.expression_varies) or dmpl_slot is not None:
         weights = np.zeros((frames, len(targets)))
-        weights[:, expression_slot:] = expression - base
+        expression, base = anim.expression, anim.base_expression  # both set for a model with expressions
+        if expression_slot is not None and expression is not None and base is not None and anim.expression_varies:
+            expr = expression - base
+            weights[:, expression_slot : expression_slot + expr.shape[1]] = expr
+        if dmpl_slot is not None and anim.dmpls is not None:
+            weights[:, dmpl_slot : dmpl_slot + anim.dmpls.shape[1]] = anim.dmpls
         add_channel(mesh_node, "weights", build.accessor(weights.reshape(-1), _FLOAT, name="morph_weights"))
     animation_name = name or (Path(anim.source).stem if anim.source and not anim.source.startswith("<") else "motion")
     gltf.animations.append(pygltflib.Animation(name=animation_name, samplers=samplers, channels=channels))

@@ -106,8 +106,9 @@ def evaluate(
     ----------
     setup : the model with its options.
     source : the model's arrays.
-    params : ``betas``, ``expression``, ``transl`` and one entry per pose block; None entries are
-        zero (identity rotations); see :mod:`smplcore.frontend.inputs` for the layouts.
+    params : ``betas``, ``expression``, ``transl``, ``dmpls`` (models with DMPL blend shapes) and one
+        entry per pose block; None entries are zero (identity rotations); see
+        :mod:`smplcore.frontend.inputs` for the layouts.
     rotation_matrices : the pose blocks are rotation matrices (no PCA, no mean pose added).
     vertices : build the mesh; without it only the joints (extra joints and landmarks included).
     like : an array giving namespace, dtype and device when every parameter is None.
@@ -118,6 +119,11 @@ def evaluate(
     """
     spec = setup.spec
     given = {k: v for k, v in params.items() if v is not None}
+    if "dmpls" in given and not setup.num_dmpls:
+        raise ValueError(
+            "dmpls: this model has no DMPL blend shapes; create it with dmpl_path=<the dmpl.npz file> "
+            "(smplcore.create(..., dmpl_path=...) or BodyModel(..., dmpl_path=...)), or leave dmpls out"
+        )
     ref = next(iter(given.values()), like)
     xp = namespace(ref)
     batch = batch_of({k: (v if v.ndim > 1 else v[None]) for k, v in given.items()})
@@ -152,6 +158,8 @@ def evaluate(
     betas = coefficients("betas", setup.num_betas)
     expression = coefficients("expression", setup.num_expression_coeffs) if spec.has_expression else None
     coeffs = betas if expression is None else xp.concat([betas, expression], axis=1)
+    if setup.num_dmpls:  # DMPL blend shapes follow the shape and expression ones (setup.blend_dirs)
+        coeffs = xp.concat([coeffs, coefficients("dmpls", setup.num_dmpls)], axis=1)
 
     pose: dict[str, Any] = {}
     if rotation_matrices:

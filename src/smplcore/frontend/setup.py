@@ -35,6 +35,7 @@ SETUP_OPTIONS: dict[str, Any] = {
     "kid_template_path": "",
     "v_template": None,
     "joint_regressors": None,
+    "dmpl_path": None,
 }
 
 
@@ -60,6 +61,7 @@ class ModelSetup:
     pose_mean : (3 J,) axis-angle added to the full pose (the mean hand pose unless flat).
     extra_joint_ids / extra_joint_names : vertices appended to the joints.
     use_face_contour : append the 17 dynamic contour landmarks.
+    dmpldirs : (V, 3, num_dmpls) DMPL soft-tissue blend shapes (``dmpl_path``), or None.
     """
 
     spec: FamilySpec
@@ -81,6 +83,7 @@ class ModelSetup:
     # built in __post_init__ when not given, so always set afterwards
     keypoints: Keypoints = None  # type: ignore[assignment]
     regressor: Any = None  # smplcore.keypoints.Regressor of the joint_regressors option, or None
+    dmpldirs: np.ndarray | None = None
     _cache: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -128,6 +131,7 @@ class ModelSetup:
         kid_template_path: str | Path | None = None,
         v_template: np.ndarray | None = None,
         joint_regressors: Any = None,
+        dmpl_path: str | Path | None = None,
         owner: str = "",
     ) -> ModelSetup:
         spec = get_spec(data.model_type)
@@ -244,12 +248,24 @@ class ModelSetup:
             use_face_contour,
             neck_chain,
             regressor=_regressor(joint_regressors, data),
+            dmpldirs=_dmpl(dmpl_path, data),
         )
 
+    @property
+    def num_dmpls(self) -> int:
+        """DMPL coefficients the model takes (0 without ``dmpl_path``)."""
+        return 0 if self.dmpldirs is None else int(self.dmpldirs.shape[-1])
+
+    def blend_dirs(self) -> np.ndarray:
+        """(V, 3, K) every coefficient's blend shape, in the order of the forward's coefficients:
+        shape, then expression, then DMPL."""
+        parts = [self.shapedirs, self.exprdirs] + ([] if self.dmpldirs is None else [self.dmpldirs])
+        return np.concatenate(parts, axis=-1)
+
     def body_arrays(self, convert=np.asarray) -> engine.BodyArrays:
-        """The engine's arrays (shape and expression bases concatenated once, here)."""
+        """The engine's arrays (shape, expression and DMPL bases concatenated once, here)."""
         d = self.data
-        dirs = np.concatenate([self.shapedirs, self.exprdirs], axis=-1)
+        dirs = self.blend_dirs()
         return engine.BodyArrays.build(
             d.v_template, dirs, d.J_regressor, d.posedirs, d.weights, d.parents, convert=convert
         )
@@ -286,6 +302,15 @@ def _regressor(joint_regressors: Any, data: ModelData) -> Any:
     from smplcore.keypoints import load_regressors
 
     return load_regressors(joint_regressors, num_vertices=data.num_vertices)
+
+
+def _dmpl(dmpl_path: str | Path | None, data: ModelData) -> np.ndarray | None:
+    """The ``dmpl_path`` option: (V, 3, n) DMPL blend shapes checked against the model's vertices, or None."""
+    if dmpl_path is None or str(dmpl_path) == "":
+        return None
+    from smplcore.io.dmpl import load_dmpl
+
+    return load_dmpl(dmpl_path, num_vertices=data.num_vertices)
 
 
 def _check_count(name: str, value: int) -> None:

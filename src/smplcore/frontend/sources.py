@@ -36,9 +36,9 @@ def constant_array(setup: ModelSetup, name: str) -> np.ndarray:
 
 
 def plain_arrays(setup: ModelSetup, convert: Callable[[np.ndarray], Any]) -> PlainArrays:
-    """The setup's arrays in the official layout (shape and expression columns together)."""
+    """The setup's arrays in the official layout (shape, expression and DMPL columns together)."""
     d = setup.data
-    dirs = np.concatenate([setup.shapedirs, setup.exprdirs], axis=-1)
+    dirs = setup.blend_dirs()
     posedirs = None
     if d.posedirs is not None and np.any(d.posedirs):
         posedirs = convert(np.asarray(d.posedirs).reshape(-1, d.posedirs.shape[-1]).T)

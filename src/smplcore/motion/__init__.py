@@ -23,7 +23,14 @@ from smplcore.motion.process import (
 )
 from smplcore.motion.resample import ResamplePlan
 from smplcore.motion.resample import plan as resample_plan
-from smplcore.motion.sequence import POSE_WIDTH, Motion, load_motion, motion_from_arrays, save_motion
+from smplcore.motion.sequence import (
+    POSE_WIDTH,
+    Motion,
+    ShapeSpaceWarning,
+    load_motion,
+    motion_from_arrays,
+    save_motion,
+)
 
 __all__ = [
     "EXIT_DISK_FULL",
@@ -37,6 +44,7 @@ __all__ = [
     "ProcessFailed",
     "ProcessOptions",
     "ResamplePlan",
+    "ShapeSpaceWarning",
     "Summary",
     "load_motion",
     "motion_from_arrays",

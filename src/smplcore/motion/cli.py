@@ -70,6 +70,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     m.add_argument("--ext", choices=("npz", "pkl"), default=None, help="model file extension (default: npz, then pkl)")
     m.add_argument("--num-betas", type=_count, default=None, help="shape coefficients used (default: all)")
+    m.add_argument(
+        "--dmpl",
+        default=None,
+        metavar="FILE",
+        help="DMPL soft-tissue blend shapes (dmpl.npz, as AMASS ships them): each sequence's dmpls drive them",
+    )
     o = p.add_argument_group("what to write")
     o.add_argument(
         "--recipe",
@@ -183,6 +189,7 @@ def run_process(args: argparse.Namespace) -> int:
         compress=args.compress,
         backend=args.backend,
         chunk=args.batch_frames or None,
+        dmpl_path=args.dmpl,
     )
     with warnings.catch_warnings():
         warnings.simplefilter("always", OutputSizeWarning)
@@ -213,11 +220,13 @@ def run_process(args: argparse.Namespace) -> int:
 
 
 def _size_warning_as_one_line(show):
-    """``warnings.showwarning`` that prints OutputSizeWarning as one line (other warnings as ``show`` does)."""
+    """``warnings.showwarning`` that prints OutputSizeWarning and ShapeSpaceWarning as one line (other warnings
+    as ``show`` does)."""
     from smplcore.motion.process import OutputSizeWarning
+    from smplcore.motion.sequence import ShapeSpaceWarning
 
     def showwarning(message, category, filename, lineno, file=None, line=None):  # noqa: ANN001, ANN202
-        if issubclass(category, OutputSizeWarning):
+        if issubclass(category, (OutputSizeWarning, ShapeSpaceWarning)):
             print(f"smplcore process: warning: {message}", file=sys.stderr, flush=True)
         else:
             show(message, category, filename, lineno, file, line)

@@ -119,6 +119,7 @@ class ModelCache:
     backend: str = "auto"
     dtype: Any = np.float32
     vertices: bool = False  # what the models will mostly compute (for backend "auto")
+    dmpl_path: str | Path | None = None  # DMPL blend shapes for every model (see BodyModel's dmpl_path)
     models: dict[tuple[str, str], LoadedModel] = field(default_factory=dict)
 
     def get(self, model_type: str, gender: str) -> LoadedModel:
@@ -144,6 +145,8 @@ class ModelCache:
             options.update(use_pca=False, flat_hand_mean=True)
         if spec.has_expression:
             options["num_expression_coeffs"] = data.num_expression_coeffs
+        if self.dmpl_path is not None:
+            options["dmpl_path"] = self.dmpl_path
         model = BodyModel(data=data, dtype=self.dtype, **options)
         backend = resolve_backend(self.backend, self.vertices)
         loaded = LoadedModel(model, path, data.gender, backend)
@@ -180,12 +183,15 @@ class Evaluator:
         self.vertex_budget = int(vertex_budget)
 
     def params(self, motion: Any, loaded: LoadedModel) -> dict[str, np.ndarray]:
-        """The motion as keyword parameters of ``loaded`` (betas and expression cut to the model's size)."""
+        """The motion as keyword parameters of ``loaded`` (betas, expression and DMPL coefficients cut to the
+        model's size; the motion's ``dmpls`` only for a model with DMPL blend shapes)."""
         model = loaded.model
         params = motion.model_params(model.model_type, model.skeleton_joint_names)
         params["betas"] = params["betas"][:, : model.num_betas]
         if "expression" in params:
             params["expression"] = params["expression"][:, : model.num_expression_coeffs]
+        if model.num_dmpls and motion.dmpls is not None:
+            params["dmpls"] = np.asarray(motion.dmpls)[:, : model.num_dmpls]
         return {k: np.ascontiguousarray(v, dtype=model.dtype) for k, v in params.items()}
 
     def run(
@@ -294,21 +300,19 @@ def _skeleton_joints(loaded: LoadedModel, params: dict[str, Any]) -> np.ndarray:
             params[b.name] if b.name in params else zeros(batch, 3 * b.num_joints) for b in setup.spec.pose_blocks
         ]
         rotmats = rodrigues(xp.concat(blocks, axis=1).reshape(batch, -1, 3))
-        coeffs = coefficients("betas", setup.num_betas)
+        parts = [coefficients("betas", setup.num_betas)]  # the order of setup.blend_dirs
         if setup.spec.has_expression:
-            expression = coefficients("expression", setup.num_expression_coeffs)
-            if coeffs.shape[0] != expression.shape[0]:
-                coeffs = xp.concat(
-                    [
-                        coeffs[:1].expand(expression.shape[0], -1)
-                        if torch_backend
-                        else np.broadcast_to(coeffs[:1], (expression.shape[0], coeffs.shape[1])),
-                        expression,
-                    ],
-                    axis=1,
-                )
-            else:
-                coeffs = xp.concat([coeffs, expression], axis=1)
+            parts.append(coefficients("expression", setup.num_expression_coeffs))
+        if setup.num_dmpls:
+            parts.append(coefficients("dmpls", setup.num_dmpls))
+        rows = max(p.shape[0] for p in parts)
+        parts = [
+            p
+            if p.shape[0] == rows
+            else (p[:1].expand(rows, -1) if torch_backend else np.broadcast_to(p[:1], (rows,) + p.shape[1:]))
+            for p in parts
+        ]
+        coeffs = parts[0] if len(parts) == 1 else xp.concat(parts, axis=1)
         rest = rest_joints(coeffs, arrays)
         if rest.shape[0] != batch:
             rest = rest.expand(batch, -1, -1) if torch_backend else np.broadcast_to(rest, (batch,) + rest.shape[1:])

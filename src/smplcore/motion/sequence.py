@@ -9,6 +9,7 @@ are absolute: evaluate them with ``flat_hand_mean=True`` and ``use_pca=False``.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -21,6 +22,31 @@ from smplcore.family.specs import get_spec
 
 if TYPE_CHECKING:
     from smplcore.motion.resample import ResamplePlan
+
+
+class ShapeSpaceWarning(UserWarning):
+    """A motion's betas, shape coefficients of its SMPL-family model, are fed to the open model, whose betas
+    are coefficients of another shape space (they give another body)."""
+
+
+_warned_shape_space: set[str] = set()
+
+
+def warn_open_model_betas(motion_type: str, *, stacklevel: int = 2, key: str = "") -> None:
+    """Warn once per process (per ``key``) that ``motion_type`` betas are fed to the open model."""
+    if key in _warned_shape_space:
+        return
+    _warned_shape_space.add(key)
+    name = get_spec(motion_type).display_name
+    warnings.warn(
+        f"betas: the motion's betas are {name} shape coefficients, but they drive the open model, whose betas "
+        "mean something else (another shape space): the body will not have the captured shape. Use the "
+        f"motion's own model to keep it (model_type={motion_type!r} with its model file), or drop the betas "
+        "(num_betas=0)",
+        ShapeSpaceWarning,
+        stacklevel=stacklevel + 1,
+    )
+
 
 # Full-pose width (values per frame) of each model type.
 POSE_WIDTH = {"smpl": 72, "smplh": 156, "smplx": 165, "mano": 48, "flame": 15}
@@ -127,9 +153,13 @@ class Motion:
         """Keyword arguments for a model of ``model_type``: its pose blocks, ``transl`` and ``betas``.
 
         The full pose is carried over joint by joint by name, so a SMPL+H motion drives SMPL, the
-        open model or SMPL-X (joints the source lacks stay at zero rotation).
+        open model or SMPL-X (joints the source lacks stay at zero rotation). The betas are carried
+        over as they are: for the open model, whose betas mean something else, a
+        :class:`ShapeSpaceWarning` says so (once per process) when they are not zero.
         """
         target = get_spec(model_type)
+        if target.model_type == "open" and self.model_type != "open" and np.any(np.asarray(self.betas) != 0):
+            warn_open_model_betas(self.model_type, stacklevel=2)
         names = list(joint_names or target.joint_names)
         source_names = list(get_spec(self.model_type).joint_names)
         frames = self.num_frames

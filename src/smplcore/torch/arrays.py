@@ -19,7 +19,22 @@ from smplcore.engine.kernels import ops
 from smplcore.frontend.evaluate import PlainArrays
 
 # Buffers the engine's arrays are derived from (expr_dirs only where the model has one).
-SOURCE_BUFFERS = ("v_template", "shapedirs", "expr_dirs", "posedirs", "J_regressor", "lbs_weights", "parents")
+SOURCE_BUFFERS = (
+    "v_template",
+    "shapedirs",
+    "expr_dirs",
+    "dmpldirs",
+    "posedirs",
+    "J_regressor",
+    "lbs_weights",
+    "parents",
+)
+
+
+def _blend_dirs(m: torch.nn.Module) -> torch.Tensor:
+    """(V, 3, K) shape, expression and DMPL blend shapes (the module's buffers that it has), concatenated."""
+    parts = [getattr(m, n) for n in ("shapedirs", "expr_dirs", "dmpldirs") if getattr(m, n, None) is not None]
+    return parts[0] if len(parts) == 1 else torch.cat(parts, -1)
 
 
 def _host(t: torch.Tensor) -> np.ndarray:
@@ -67,7 +82,7 @@ class ModuleArrays:
     def _build(self) -> engine.BodyArrays:
         m = self.module
         ref = m.v_template
-        dirs = m.shapedirs if getattr(m, "expr_dirs", None) is None else torch.cat([m.shapedirs, m.expr_dirs], -1)
+        dirs = _blend_dirs(m)
         num_verts = ref.shape[0]
         posedirs = _host(m.posedirs).reshape(-1, num_verts, 3).transpose(1, 2, 0)
 
@@ -87,7 +102,7 @@ class ModuleArrays:
 
     def plain_arrays(self) -> PlainArrays:
         m = self.module
-        dirs = m.shapedirs if getattr(m, "expr_dirs", None) is None else torch.cat([m.shapedirs, m.expr_dirs], -1)
+        dirs = _blend_dirs(m)
         return PlainArrays(m.v_template, dirs, m.posedirs, m.J_regressor, m.parent_list, m.lbs_weights)
 
     def constant(self, name: str, like: Any) -> Any:

@@ -59,7 +59,8 @@ def create(model_path: str | Path | None = None, model_type: str | None = None, 
     model_type : ``smpl`` (default for folders), ``smplh``, ``smplx``, ``mano``, ``flame`` or ``open``.
     **kwargs : the class's constructor keywords (``gender``, ``ext`` — smplx's default per class: ``npz``
         for SMPL-X, ``pkl`` otherwise; the other format is used when only it is there —, ``num_betas``,
-        ``use_pca``, ..., and smplcore's ``kernel``).
+        ``use_pca``, ..., and smplcore's ``kernel``, and ``dmpl_path``: a DMPL file whose blend shapes the
+        forward's ``dmpls`` (B, n) drive).
     """
     return _resolve(model_path, model_type, False, kwargs)
 

@@ -110,7 +110,7 @@ class SMPL(nn.Module):
         self.kernel = check_kernel(kernel)
         self.check_finite, self.check_rotations = bool(check_finite), bool(check_rotations)
         self.dtype = dtype
-        self.gender = gender
+        self.gender = data.gender if spec.model_type == "open" else gender  # the open model's: normalised
         self.age = setup_opts.get("age", SETUP_OPTIONS["age"])
         self.batch_size = batch_size
         self.joint_mapper = joint_mapper
@@ -143,6 +143,8 @@ class SMPL(nn.Module):
         self.register_buffer("shapedirs", as_float(setup.shapedirs))
         if self.SPEC.has_expression:
             self.register_buffer("expr_dirs", as_float(setup.exprdirs))
+        if setup.dmpldirs is not None:  # dmpl_path= only (human_body_prior's name): smplx's state_dict otherwise
+            self.register_buffer("dmpldirs", as_float(setup.dmpldirs))
         self.register_buffer("v_template", as_float(d.v_template))
         self.register_buffer("J_regressor", as_float(d.J_regressor))
         num_posedirs = 9 * (d.num_joints - 1)
@@ -213,6 +215,11 @@ class SMPL(nn.Module):
     @property
     def num_expression_coeffs(self) -> int:
         return self.setup.num_expression_coeffs
+
+    @property
+    def num_dmpls(self) -> int:
+        """DMPL coefficients the forward's ``dmpls`` takes (0 without ``dmpl_path``)."""
+        return self.setup.num_dmpls
 
     @property
     def joint_names(self) -> list[str]:
@@ -308,6 +315,7 @@ class SMPL(nn.Module):
         rotations = bool(kwargs.pop("check_rotations", self.check_rotations))
         names = [b.name for b in self.SPEC.pose_blocks] + ["betas", "transl"]
         names += ["expression"] if self.SPEC.has_expression else []
+        names += ["dmpls"]  # (B, n) DMPL coefficients; an error without dmpl_path
         warn_unknown(f"{type(self).__name__}.forward", set(kwargs) - set(names), forward=True)
         given = {k: self._as_tensor(k, kwargs.get(k)) for k in names}
         params = self._with_defaults(given, use_pose_defaults=pose2rot)

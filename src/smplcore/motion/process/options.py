@@ -48,6 +48,8 @@ class ProcessOptions:
     backend : ``auto`` (NumPy, the fastest on a CPU), ``numpy`` or ``torch``.
     chunk : frames per forward call (None: the backend's best, see
         :class:`~smplcore.motion.models.Evaluator`).
+    dmpl_path : a DMPL file (``dmpl.npz``); each sequence's ``dmpls`` (T, n) then drive its soft-tissue
+        blend shapes (a sequence without them gets none).
     """
 
     model_path: str | None = None
@@ -66,14 +68,16 @@ class ProcessOptions:
     compress: bool = False
     backend: str = "auto"
     chunk: int | None = None
+    dmpl_path: str | None = None
 
     def __post_init__(self) -> None:
         from smplcore.family.specs import get_spec
         from smplcore.motion.models import GENDER_RULES
         from smplcore.motion.resample import METHODS
 
-        if self.model_path is not None:
-            object.__setattr__(self, "model_path", str(Path(self.model_path).expanduser().resolve()))
+        for name in ("model_path", "dmpl_path"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, str(Path(getattr(self, name)).expanduser().resolve()))
         if self.model_type is not None:
             object.__setattr__(self, "model_type", get_spec(self.model_type).model_type)
         if self.gender not in GENDER_RULES:
@@ -107,6 +111,8 @@ class ProcessOptions:
         out = asdict(self)
         for name in ("backend", "chunk"):  # how, not what
             out.pop(name)
+        if out["dmpl_path"] is None:  # as before the option existed: older manifests still match
+            out.pop("dmpl_path")
         return out
 
 

@@ -47,6 +47,7 @@ class Summary:
     manifest: Path | None = None
     not_done: int = 0
     stopped: str | None = None
+    open_model_betas: list[str] = field(default_factory=list)  # motion types whose betas drove the open model
 
     @property
     def frames_per_second(self) -> float:

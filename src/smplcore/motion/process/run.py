@@ -92,6 +92,8 @@ def process_tree(
         raise ProcessError(f"{output_dir}: the output folder must differ from the input folder")
     if options.model_path is not None and not Path(options.model_path).exists():
         raise ProcessError(f"{options.model_path}: no such model file or folder")
+    if options.dmpl_path is not None and not Path(options.dmpl_path).is_file():
+        raise ProcessError(f"{options.dmpl_path}: no such DMPL file (dmpl_path / --dmpl)")
     if options.model_path is None and options.model_type not in (None, "open"):
         raise ProcessError(
             f"model_type {options.model_type!r} needs a model file or folder (--model-path); "
@@ -108,6 +110,10 @@ def process_tree(
     with _locked(output_dir):
         summary = _run_locked(input_dir, output_dir, options, workers, ray_address, overwrite, exclude, progress,
                               manifest_interval, warn_bytes)  # fmt: skip
+    if summary.open_model_betas:
+        from smplcore.motion.sequence import warn_open_model_betas
+
+        warn_open_model_betas(summary.open_model_betas[0], stacklevel=2, key="process_tree")
     if check and summary.exit_code != 0:
         raise ProcessFailed(summary)
     return summary
@@ -217,6 +223,9 @@ def _run_locked(
         bar.update(0, summary.existing)
 
     def on_result(entry: dict[str, Any]) -> None:
+        foreign = entry.pop("open_model_betas", None)
+        if foreign and foreign not in summary.open_model_betas:
+            summary.open_model_betas.append(foreign)
         manifest.entries[entry["input"]] = entry
         if entry["status"] == "done":
             summary.done += 1

@@ -8,6 +8,7 @@ import fnmatch
 import os
 import secrets
 import time
+import warnings
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from datetime import datetime, timezone
@@ -87,6 +88,7 @@ class WorkerState:
             backend=options.backend,
             dtype=dtype,
             vertices=options.vertices,
+            dmpl_path=options.dmpl_path,
         )
         return cls(options, cache, Evaluator(chunk=options.chunk))
 
@@ -100,7 +102,7 @@ def process_file(task: Task, state: WorkerState) -> dict[str, Any]:
     """
     from smplcore.motion import resample as rs
     from smplcore.motion.models import pick_gender
-    from smplcore.motion.sequence import load_motion
+    from smplcore.motion.sequence import ShapeSpaceWarning, load_motion
 
     options = state.options
     start = time.perf_counter()
@@ -119,9 +121,13 @@ def process_file(task: Task, state: WorkerState) -> dict[str, Any]:
         model_type = options.model_type or (motion.model_type if options.model_path else "open")
         gender = pick_gender(motion.gender, options.gender)
         loaded = state.cache.get(model_type, gender)
-        joints, verts = state.evaluator.run(
-            motion, loaded, vertices=options.vertices, skeleton_only=not options.extra_joints
-        )
+        with warnings.catch_warnings():  # reported to the main process (which warns once) in the entry
+            warnings.simplefilter("ignore", ShapeSpaceWarning)
+            joints, verts = state.evaluator.run(
+                motion, loaded, vertices=options.vertices, skeleton_only=not options.extra_joints
+            )
+        if loaded.model_type == "open" and motion.model_type != "open" and np.any(motion.betas[: loaded.num_betas]):
+            entry["open_model_betas"] = motion.model_type
         names = list(loaded.model.joint_names)
         keep = len(names) if options.extra_joints else len(loaded.model.skeleton_joint_names)
         if options.num_joints is not None:
