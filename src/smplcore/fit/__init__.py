@@ -7,9 +7,12 @@ full model (pose correctives included), batched over bodies. Works with torch mo
 NumPy either way).
 """
 
+from smplcore.fit.camera import Camera
 from smplcore.fit.convert import convert, correspondence
 from smplcore.fit.joints import fit_joints
+from smplcore.fit.keypoints2d import fit_keypoints
+from smplcore.fit.priors import GMMPrior
 from smplcore.fit.result import FitResult
 from smplcore.fit.vertices import fit_vertices
 
-__all__ = ["FitResult", "convert", "correspondence", "fit_joints", "fit_vertices"]
+__all__ = ["Camera", "FitResult", "GMMPrior", "convert", "correspondence", "fit_joints", "fit_keypoints", "fit_vertices"]
