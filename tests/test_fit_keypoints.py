@@ -6,9 +6,9 @@ import pickle
 
 import numpy as np
 import pytest
-from fakes_fit2d import CAMERA, natural_poses, pa_mpjpe, scene, write_fake_gmm
 
 import smplcore
+from fakes_fit2d import CAMERA, natural_poses, pa_mpjpe, scene, write_fake_gmm
 from smplcore import fit
 from smplcore import keypoints as kp
 from smplcore.errors import ModelFileError, ShapeError

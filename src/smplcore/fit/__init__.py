@@ -15,4 +15,13 @@ from smplcore.fit.priors import GMMPrior
 from smplcore.fit.result import FitResult
 from smplcore.fit.vertices import fit_vertices
 
-__all__ = ["Camera", "FitResult", "GMMPrior", "convert", "correspondence", "fit_joints", "fit_keypoints", "fit_vertices"]
+__all__ = [
+    "Camera",
+    "FitResult",
+    "GMMPrior",
+    "convert",
+    "correspondence",
+    "fit_joints",
+    "fit_keypoints",
+    "fit_vertices",
+]

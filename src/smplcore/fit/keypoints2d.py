@@ -47,8 +47,9 @@ def keypoint_map(body: FitBody, model: Any, convention: Any, regressor: Any = No
             raise ShapeError(
                 f"regressor: made for {regressor.num_vertices} vertices, the model has {body.num_vertices}"
             )
-        plan = keypoints.plan(list(regressor.qualified_names()) if hasattr(regressor, "qualified_names")
-                              else list(regressor.names), dst)
+        plan = keypoints.plan(
+            list(regressor.qualified_names()) if hasattr(regressor, "qualified_names") else list(regressor.names), dst
+        )
         mat = regressor.matrix
         mat = np.asarray(mat.toarray() if hasattr(mat, "toarray") else mat, np.float64)
         rows = np.concatenate([mat, np.zeros((len(mat), body.num_joints))], axis=1)
@@ -240,8 +241,9 @@ def fit_keypoints(
     both = State(*(np.concatenate([getattr(c[0], f) for c in candidates]) for f in ("pose", "coeffs", "transl")))
     scale2 = np.concatenate([c[1] for c in candidates])
     reps = len(candidates)
-    terms = _terms(body, kmap, camera, np.tile(targets, (reps, 1, 1)), np.tile(w1, (reps, 1)), scale2, sigma, free,
-                   none)
+    terms = _terms(
+        body, kmap, camera, np.tile(targets, (reps, 1, 1)), np.tile(w1, (reps, 1)), scale2, sigma, free, none
+    )
     both, cost, _, iterations = levenberg_marquardt(body, terms, both, max_iter=max_iter, tol=tol)
     pick = np.argmin(cost.reshape(reps, batch), axis=0) * batch + np.arange(batch)
     state = State(both.pose[pick], both.coeffs[pick], both.transl[pick])
@@ -259,9 +261,22 @@ def fit_keypoints(
     converged = np.zeros(batch, bool)
     for factor in anneal:
         terms = _terms(
-            body, kmap, camera, targets, weights, scale, sigma, free, shared,
-            shape_prior=shape_prior * factor, pose_prior=pose_prior * factor, limit_prior=joint_limits,
-            bend_prior=bending, gmm=gmm, gmm_prior=gmm_weight * factor, smooth=smoothness,
+            body,
+            kmap,
+            camera,
+            targets,
+            weights,
+            scale,
+            sigma,
+            free,
+            shared,
+            shape_prior=shape_prior * factor,
+            pose_prior=pose_prior * factor,
+            limit_prior=joint_limits,
+            bend_prior=bending,
+            gmm=gmm,
+            gmm_prior=gmm_weight * factor,
+            smooth=smoothness,
         )
         state, cost, converged, more = levenberg_marquardt(body, terms, state, max_iter=max_iter, tol=tol)
         iterations += more

@@ -35,31 +35,47 @@ from smplcore.errors import ModelFileError
 
 # name: ((x lo, x hi), (y lo, y hi), (z lo, z hi)) in degrees, left side / midline; source note
 JOINT_LIMITS: dict[str, tuple[tuple[tuple[float, float], ...], str]] = {
-    "left_hip": (((-120, 30), (-45, 45), (-30, 45)), "AAOS: flexion 120, extension 30, rotation 45/45, "
-                 "adduction 30, abduction 45"),
-    "left_knee": (((0, 135), (-20, 20), (-10, 10)), "AAOS: flexion 135, extension 0; rotation and "
-                  "varus/valgus: smplcore"),
-    "left_ankle": (((-20, 50), (-30, 30), (-35, 15)), "AAOS: dorsiflexion 20, plantar flexion 50, "
-                   "inversion 35, eversion 15; y (ab/adduction): smplcore"),
-    "left_foot": (((-70, 45), (-10, 10), (-10, 10)), "AAOS great toe MTP: extension 70, flexion 45; "
-                  "y, z: smplcore"),
-    "spine1": (((-25 / 3, 80 / 3), (-15, 15), (-35 / 3, 35 / 3)), "AAOS thoracolumbar: flexion 80, "
-               "extension 25, rotation 45, lateral bending 35; a third per spine joint"),
+    "left_hip": (
+        ((-120, 30), (-45, 45), (-30, 45)),
+        "AAOS: flexion 120, extension 30, rotation 45/45, adduction 30, abduction 45",
+    ),
+    "left_knee": (
+        ((0, 135), (-20, 20), (-10, 10)),
+        "AAOS: flexion 135, extension 0; rotation and varus/valgus: smplcore",
+    ),
+    "left_ankle": (
+        ((-20, 50), (-30, 30), (-35, 15)),
+        "AAOS: dorsiflexion 20, plantar flexion 50, inversion 35, eversion 15; y (ab/adduction): smplcore",
+    ),
+    "left_foot": (((-70, 45), (-10, 10), (-10, 10)), "AAOS great toe MTP: extension 70, flexion 45; y, z: smplcore"),
+    "spine1": (
+        ((-25 / 3, 80 / 3), (-15, 15), (-35 / 3, 35 / 3)),
+        "AAOS thoracolumbar: flexion 80, extension 25, rotation 45, lateral bending 35; a third per spine joint",
+    ),
     "spine2": (((-25 / 3, 80 / 3), (-15, 15), (-35 / 3, 35 / 3)), "as spine1"),
     "spine3": (((-25 / 3, 80 / 3), (-15, 15), (-35 / 3, 35 / 3)), "as spine1"),
-    "neck": (((-22.5, 22.5), (-30, 30), (-22.5, 22.5)), "AAOS cervical: flexion 45, extension 45, "
-             "rotation 60, lateral bending 45; half per joint (neck, head)"),
+    "neck": (
+        ((-22.5, 22.5), (-30, 30), (-22.5, 22.5)),
+        "AAOS cervical: flexion 45, extension 45, rotation 60, lateral bending 45; half per joint (neck, head)",
+    ),
     "head": (((-22.5, 22.5), (-30, 30), (-22.5, 22.5)), "as neck"),
     "left_collar": (((-15, 15), (-30, 30), (-10, 45)), "smplcore (shoulder girdle elevation, protraction)"),
-    "left_shoulder": (((-90, 70), (-135, 45), (-135, 90)), "AAOS: internal rotation 70, external 90 "
-                      "(x), horizontal adduction 135, abduction 45 (y), abduction 180 = T-pose + 90, "
-                      "adduction 45 past the side (z)"),
-    "left_elbow": (((-80, 80), (-150, 5), (-15, 15)), "AAOS: flexion 150, extension 0 (5 allowed), "
-                   "pronation 80, supination 80 (x); carrying angle z: smplcore"),
-    "left_wrist": (((-40, 40), (-20, 30), (-80, 70)), "AAOS: flexion 80, extension 70 (z), radial 20, "
-                   "ulnar deviation 30 (y); twist x: part of forearm rotation, smplcore"),
-    "left_hand": (((-30, 30), (-30, 30), (-90, 45)), "AAOS finger MCP: flexion 90, extension 45 (z); "
-                  "x, y: smplcore"),
+    "left_shoulder": (
+        ((-90, 70), (-135, 45), (-135, 90)),
+        "AAOS: internal rotation 70, external 90 "
+        "(x), horizontal adduction 135, abduction 45 (y), abduction 180 = T-pose + 90, "
+        "adduction 45 past the side (z)",
+    ),
+    "left_elbow": (
+        ((-80, 80), (-150, 5), (-15, 15)),
+        "AAOS: flexion 150, extension 0 (5 allowed), pronation 80, supination 80 (x); carrying angle z: smplcore",
+    ),
+    "left_wrist": (
+        ((-40, 40), (-20, 30), (-80, 70)),
+        "AAOS: flexion 80, extension 70 (z), radial 20, "
+        "ulnar deviation 30 (y); twist x: part of forearm rotation, smplcore",
+    ),
+    "left_hand": (((-30, 30), (-30, 30), (-90, 45)), "AAOS finger MCP: flexion 90, extension 45 (z); x, y: smplcore"),
 }
 
 #: (joint name, axis, sign): ``sign · θ_axis > 0`` is bending the wrong way.

@@ -102,7 +102,9 @@ def _prior_parts(terms: Terms, x: np.ndarray):
     parts = []
     const = np.zeros(len(x))
     if terms.shape_prior and len(terms.beta_cols):
-        parts.append((terms.shape_prior, x[:, terms.beta_cols], np.ones((len(x), len(terms.beta_cols))), terms.beta_cols))
+        parts.append(
+            (terms.shape_prior, x[:, terms.beta_cols], np.ones((len(x), len(terms.beta_cols))), terms.beta_cols)
+        )
     theta = x[:, terms.body_cols]
     ones = np.ones_like(theta)
     if terms.pose_prior:
@@ -246,12 +248,12 @@ def levenberg_marquardt(
     converged = np.zeros(batch, bool)
     cost, hess, grad = evaluate(body, terms, x)
     iterations = 0
-    for iterations in range(1, max_iter + 1):
+    while iterations < max_iter:
+        iterations += 1
         active = ~converged
         if coupled:
+            # (the predicted decrease below leaves out the smoothness terms: it only steers the damping)
             step = _coupled_step(terms, x, hess, grad, float(damping[0]))
-            if terms.smooth:  # the smoothness part of the gradient is inside _coupled_step; predict without it
-                pass
         else:
             step = -np.linalg.solve(_damped(hess, damping), grad[..., None])[..., 0]
         step = np.where(active[:, None], step, 0.0)
