@@ -90,8 +90,7 @@ def test_camera_rejects_bad_arguments(kwargs, match):
 def test_fit_reduces_reprojection_error_below_the_noise(open_model, synthetic, fitted):
     params, keypoints, exact, _ = synthetic
     noise = np.linalg.norm(keypoints[..., :2] - exact, axis=-1).mean(1)  # about 1.25 px for 1 px noise
-    assert fitted.reprojection_error.mean() < noise.mean(), (fitted.reprojection_error, noise)
-    assert np.all(fitted.reprojection_error < 2 * noise)  # a limb can stay in a local minimum
+    assert np.all(fitted.reprojection_error < noise), (fitted.reprojection_error, noise)
     again = np.asarray(open_model(**fitted.params).joints)
     uv = CAMERA.project(kp.convert(again, open_model, "coco17")[0])
     np.testing.assert_allclose(
@@ -104,8 +103,8 @@ def test_fit_recovers_the_3d_pose_up_to_similarity(open_model, synthetic, fitted
     got = kp.convert(np.asarray(open_model(**fitted.params).joints), open_model, "coco17")[0]
     error = pa_mpjpe(j3, got)
     rest = kp.convert(np.asarray(open_model(betas=params["betas"]).joints), open_model, "coco17")[0]
-    assert error.mean() < 0.09, error  # depth is ambiguous in 2D; the rest pose is far worse
-    assert np.median(error) < 0.6 * np.median(pa_mpjpe(j3, rest))  # a body can keep a wrong yaw (see docs)
+    assert error.mean() < 0.06 and error.max() < 0.1, error  # depth is ambiguous in 2D (about 40 mm here)
+    assert np.all(error < 0.6 * pa_mpjpe(j3, rest))  # far better than the rest pose
 
 
 def test_the_body_is_placed_in_camera_space(open_model, synthetic, fitted):

@@ -107,6 +107,19 @@ def _initial_translation(body, kmap, camera, state, targets, weights) -> tuple[n
     return transl, np.maximum(depth, 0.1) / camera.focal.mean()
 
 
+def _natural_pose(body: FitBody, block: Any) -> np.ndarray:
+    """(D,) body pose with the arms lowered (0.8 rad) and elbows (0.5) and knees (0.3) bent forward."""
+    names = body.output_joint_names[block.first_joint : block.first_joint + block.num_joints]
+    pose = np.zeros(block.width)
+    for joint, axis, value in (
+        ("left_shoulder", 2, -0.8), ("right_shoulder", 2, 0.8), ("left_elbow", 1, -0.5),
+        ("right_elbow", 1, 0.5), ("left_knee", 0, 0.3), ("right_knee", 0, 0.3),
+    ):  # fmt: skip
+        if joint in names:
+            pose[names.index(joint) * 3 + axis] = value
+    return pose
+
+
 def _terms(body, kmap, camera, targets, weights, scale, sigma, free, shared, **priors) -> Terms:
     q, k = body.num_pose, body.num_coeffs
     blocks = {b.name: b for b in body.blocks}
@@ -152,13 +165,14 @@ def fit_keypoints(
     min_points: int = 6,
     sigma: float = 100.0,
     shape_prior: float = 1e-3,
-    pose_prior: float = 1e-4,
-    joint_limits: float = 1.0,
+    pose_prior: float = 3e-5,
+    joint_limits: float = 10.0,
     bending: float = 1.0,
     gmm: str | GMMPrior | None = None,
     gmm_weight: float = 1e-4,
     smoothness: float = 0.0,
-    anneal: tuple[float, ...] = (30.0, 5.0, 1.0),
+    anneal: tuple[float, ...] = (3.0, 1.0),
+    multi_start: bool = True,
     max_iter: int = 25,
     tol: float = 1e-5,
 ) -> FitResult:
@@ -186,6 +200,8 @@ def fit_keypoints(
     gmm, gmm_weight : SMPLify's ``gmm_08.pkl`` (path or :class:`GMMPrior`) and its weight.
     smoothness : weight of Σ_t |x_t − x_{t−1}|² over pose and translation of consecutive bodies.
     anneal : multipliers of the priors' weights in the rounds of stage 2.
+    multi_start : run stage 2 also from a natural pose (arms lowered, elbows and knees a little bent)
+        and keep, per body, the fit with the lower cost (about twice the time).
     max_iter, tol : Levenberg–Marquardt iterations per round and relative decrease to stop at.
 
     Returns
@@ -226,12 +242,16 @@ def fit_keypoints(
     go_cols = np.arange(go.start, go.start + 3)
     transl_cols = q + k + np.arange(3)
     # stage 1: two starts (facing the camera, facing away), torso and head keypoints
+    given = init or {}
+    facings = ((np.pi, 0.0, 0.0), (0.0, 0.0, np.pi)) if "global_orient" not in given else (None,)
     candidates = []
-    for facing in ((np.pi, 0.0, 0.0), (0.0, 0.0, np.pi)) if init is None else (None,):
+    for facing in facings:
         state = start.copy()
         if facing is not None:
             state.pose[:, go_cols] = _rotation_of(camera, np.array(facing))
-        state.transl, scale = _initial_translation(body, kmap, camera, state, targets, weights)
+        transl, scale = _initial_translation(body, kmap, camera, state, targets, weights)
+        if "transl" not in given:
+            state.transl = transl
         candidates.append((state, scale))
     rigid = np.array([n in TORSO + HEAD for n in kmap.names])
     w1 = np.where(((weights > 0) & rigid).sum(1, keepdims=True) >= 3, weights * rigid, weights)
@@ -248,38 +268,50 @@ def fit_keypoints(
     pick = np.argmin(cost.reshape(reps, batch), axis=0) * batch + np.arange(batch)
     state = State(both.pose[pick], both.coeffs[pick], both.transl[pick])
     scale = scale2[pick]
-    # stage 2: everything, priors annealed
+    # stage 2: everything, priors annealed, from the rest pose and from a natural pose (the better is kept)
+    bp = blocks["body_pose"]
     free = np.zeros(q + k + 3, bool)
     free[go_cols] = free[transl_cols] = True
-    bp = blocks["body_pose"]
     free[bp.start : bp.start + bp.width] = True
     if fit_betas:
         free[q : q + body.num_betas] = True
     shared = np.zeros_like(free)
     if share_betas and fit_betas:
         shared[q : q + body.num_betas] = True
-    converged = np.zeros(batch, bool)
-    for factor in anneal:
-        terms = _terms(
-            body,
-            kmap,
-            camera,
-            targets,
-            weights,
-            scale,
-            sigma,
-            free,
-            shared,
-            shape_prior=shape_prior * factor,
-            pose_prior=pose_prior * factor,
-            limit_prior=joint_limits,
-            bend_prior=bending,
-            gmm=gmm,
-            gmm_prior=gmm_weight * factor,
-            smooth=smoothness,
-        )
-        state, cost, converged, more = levenberg_marquardt(body, terms, state, max_iter=max_iter, tol=tol)
+    priors = dict(shape_prior=shape_prior, pose_prior=pose_prior, gmm_prior=gmm_weight)
+    starts = [state]
+    if multi_start and "body_pose" not in given:
+        other = state.copy()
+        other.pose[:, bp.start : bp.start + bp.width] = _natural_pose(body, bp)
+        starts.append(other)
+    best = None
+    for first in starts:
+        state, more = first, 0
+        for factor in anneal:
+            terms = _terms(
+                body, kmap, camera, targets, weights, scale, sigma, free, shared,
+                **{key: value * factor for key, value in priors.items()},
+                limit_prior=joint_limits, bend_prior=bending, gmm=gmm, smooth=smoothness,
+            )  # fmt: skip
+            state, cost, converged, used = levenberg_marquardt(body, terms, state, max_iter=max_iter, tol=tol)
+            more += used
         iterations += more
+        if best is None:
+            best = (state, cost, converged)
+            continue
+        coupled = bool(shared.any() or smoothness) and batch > 1
+        better = np.full(batch, cost.sum() < best[1].sum()) if coupled else cost < best[1]
+        best = (
+            State(
+                *(
+                    np.where(better[:, None], getattr(state, f), getattr(best[0], f))
+                    for f in ("pose", "coeffs", "transl")
+                )
+            ),
+            np.where(better, cost, best[1]),
+            np.where(better, converged, best[2]),
+        )
+    state, _, converged = best
     dist = reprojection(body, terms, state)
     used = weights > 0
     error = (dist * used).sum(1) / used.sum(1)

@@ -191,7 +191,7 @@ class GMMPrior:
         """The best component of each (B, D) pose, its residuals (B, D) ``Lᵀ(θ − μ)`` and Jacobian
         (B, D, D) ``Lᵀ``; the cost is ``½|r|² + penalty``."""
         diff = theta[:, None, :] - self.means[None]  # (B, C, D)
-        res = np.einsum("cdk,bcd->bck", self.chol, diff)
+        res = (diff[:, :, None, :] @ self.chol[None])[:, :, 0]  # (B, C, D): Lᵀ(θ − μ) per component
         cost = 0.5 * np.sum(res * res, axis=-1) + self.penalty
         best = np.argmin(cost, axis=1)
         rows = np.arange(len(theta))

@@ -80,14 +80,15 @@ def unflat(body: FitBody, x: np.ndarray) -> State:
 def keypoints_3d(body: FitBody, kmap: KeypointMap, state: State, jacobian: bool = False):
     """(B, K, 3) keypoints of the bodies and, with ``jacobian``, (B, K, 3, P) over the flat parameters."""
     lin = pose_points(body, kmap.points, body.full_pose(state.pose), state.coeffs, state.transl, jacobian)
-    pts = np.einsum("kn,bnc->bkc", kmap.combo, lin.points)
+    pts = kmap.combo @ lin.points
     if not jacobian:
         return pts, None
     nj3 = 3 * body.num_joints
     jac = lin.jacobian
     if body.pose_map is not None:
         jac = np.concatenate([jac[..., :nj3] @ body.pose_map.T, jac[..., nj3:]], axis=-1)
-    return pts, np.einsum("kn,bncp->bkcp", kmap.combo, jac)
+    batch, n, _, width = jac.shape
+    return pts, (kmap.combo @ jac.reshape(batch, n, 3 * width)).reshape(batch, -1, 3, width)
 
 
 def reprojection(body: FitBody, terms: Terms, state: State) -> np.ndarray:
@@ -153,13 +154,14 @@ def evaluate(body: FitBody, terms: Terms, x: np.ndarray, system: bool = True):
         return cost, None, None
     cols = np.flatnonzero(terms.free)
     irls = terms.weights * sig2 * sig2 / (sig2 + e2) ** 2 * s2  # (B, K)
-    j2 = np.einsum("bkuc,bkcp->bkup", d_uv, jac[..., cols])  # (B, K, 2, F)
+    j2 = d_uv @ jac[..., cols]  # (B, K, 2, F)
     jw = j2 * np.sqrt(irls)[:, :, None, None]
     batch, num_k = e.shape[:2]
     jw = jw.reshape(batch, 2 * num_k, len(cols))
     rw = (e * np.sqrt(irls)[..., None]).reshape(batch, 2 * num_k)
-    hess = np.einsum("brp,brq->bpq", jw, jw)
-    grad = np.einsum("brp,br->bp", jw, rw)
+    jt = np.swapaxes(jw, 1, 2)
+    hess = jt @ jw
+    grad = (jt @ rw[..., None])[..., 0]
     where = np.full(x.shape[1], -1)
     where[cols] = np.arange(len(cols))
     for weight, res, pj, pcols in parts:
@@ -174,8 +176,9 @@ def evaluate(body: FitBody, terms: Terms, x: np.ndarray, system: bool = True):
             grad[:, idx] += weight * d * res[:, keep]
         else:
             m = pj[:, :, keep]
-            hess[np.ix_(np.arange(batch), idx, idx)] += weight * np.einsum("bmp,bmq->bpq", m, m)
-            grad[:, idx] += weight * np.einsum("bmp,bm->bp", m, res)
+            mt = np.swapaxes(m, 1, 2)
+            hess[np.ix_(np.arange(batch), idx, idx)] += weight * (mt @ m)
+            grad[:, idx] += weight * (mt @ res[..., None])[..., 0]
     return cost, hess, grad
 
 
@@ -260,7 +263,7 @@ def levenberg_marquardt(
         trial = x.copy()
         trial[:, cols] += step
         new_cost = evaluate(body, terms, trial, system=False)[0]
-        predicted = -(2 * np.einsum("bp,bp->b", grad, step) + np.einsum("bp,bpq,bq->b", step, hess, step))
+        predicted = -(2 * np.sum(grad * step, axis=1) + np.sum(step * (hess @ step[..., None])[..., 0], axis=1))
         if coupled:
             gain = np.full(batch, (cost.sum() - new_cost.sum()) / max(abs(predicted.sum()), 1e-300))
             better = np.full(batch, new_cost.sum() <= cost.sum()) & active
