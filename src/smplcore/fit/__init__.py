@@ -5,6 +5,10 @@ squares for shape and translation) and refines with Levenberg–Marquardt on the
 full model (pose correctives included), batched over bodies. Works with torch models of
 :func:`smplcore.create` and the NumPy :class:`smplcore.BodyModel` alike (the solver runs in float64
 NumPy either way).
+
+``fit_keypoints`` fits 2D keypoints seen by a pinhole :class:`Camera` (OpenCV convention), SMPLify-style:
+robust reprojection cost, staged Levenberg–Marquardt, open priors (anatomical joint limits, elbow/knee
+bending) and SMPLify's GMM when the user has it (:class:`GMMPrior`).
 """
 
 from smplcore.fit.camera import Camera
