@@ -306,3 +306,21 @@ def test_low_confidence_points_are_ignored(open_model, synthetic):
     keypoints[0, 9] = [0.0, 0.0, 0.05]  # a wild left wrist, below min_confidence
     r = fit.fit_keypoints(open_model, keypoints, camera=CAMERA)
     assert r.reprojection_error[0] < 1.5
+
+
+@pytest.mark.parametrize("model_type", ["smpl", "smplx"])
+def test_fake_official_models_fit_too(fake_models, model_type):
+    model = smplcore.BodyModel(fake_models[f"{model_type}_neutral_npz"], model_type=model_type, dtype=np.float64)
+    width = 69 if model_type == "smpl" else 63
+    rng = np.random.default_rng(4)
+    params = {
+        "global_orient": np.array([[np.pi, 0.1, 0.0]]),
+        "body_pose": rng.normal(0, 0.05, (1, width)),
+        "transl": np.array([[0.0, 0.1, 4.0]]),
+    }
+    keypoints, exact, _ = scene(model, params, rng, noise=0.5)
+    r = fit.fit_keypoints(model, keypoints, camera=CAMERA, min_points=5)
+    start = np.linalg.norm(CAMERA.project(kp.convert(np.asarray(model(transl=params["transl"]).joints, np.float64),
+                                                     model, "coco17")[0]) - keypoints[..., :2], axis=-1)  # fmt: skip
+    assert set(r.params) >= {"global_orient", "body_pose", "betas", "transl"}
+    assert r.reprojection_error[0] < 0.05 * start.mean()
