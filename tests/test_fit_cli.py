@@ -139,3 +139,15 @@ def test_missing_camera_is_reported(tmp_path, open_model, sequence, capsys):
     assert main(["fit", str(folder), "-o", str(tmp_path / "x.npz")]) == 1
     assert "camera" in capsys.readouterr().err
     assert not (tmp_path / "x.npz").exists()
+
+
+def test_openpose_frames_without_the_person_take_the_nearest_fit(tmp_path, open_model, sequence):
+    folder = _openpose_folder(tmp_path / "op", open_model, sequence)
+    empty = folder / "frame_0002_keypoints.json"
+    empty.write_text(json.dumps({"version": 1.3, "people": []}))
+    out = tmp_path / "gap.npz"
+    assert main(["fit", str(folder), "-o", str(out), "--focal", "1000", "--center", "500,500"]) == 0
+    with np.load(out) as data:
+        assert np.isnan(data["fit_error"][2]) and not data["fit_converged"][2]
+        assert np.all(np.isfinite(data["fit_error"][[0, 1, 3]]))
+        np.testing.assert_allclose(data["poses"][2], data["poses"][1])  # nearest fitted frame (the earlier one)

@@ -208,6 +208,8 @@ def _report(entries: list[dict[str, Any]], manifest: Path | None) -> int:
         unit = e.get("error_unit", "")
         scale, shown = (1000.0, "mm") if unit == "m" else (1.0, unit)
         print(f"wrote {e['output']}: {e['frames']} frames, mean error {e['mean_error'] * scale:.2f} {shown}")
+        if e.get("missing"):
+            print(f"  frames without a detection (filled from the nearest frame): {e['missing'][:20]}")
     lagging = [e for e in done if e.get("not_converged")]
     if lagging:
         print("not converged:")

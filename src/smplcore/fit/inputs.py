@@ -116,10 +116,14 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
             if points.shape[1] <= settings.person:
                 raise ValueError(f"--person: {path} has at most {points.shape[1]} people per frame")
             points = points[:, settings.person]
+            seen = np.flatnonzero((points[..., 2] >= 0.1).sum(-1) >= 6)  # OpenPose gives zeros for a missing person
+            if len(seen) == 0:
+                raise ValueError(f"keypoints: no frame of {path} shows person {settings.person} with 6 keypoints")
             cam = _camera(settings)
-            r = fit.fit_keypoints(model, points, convention, cam, share_betas=True, smoothness=settings.smoothness,
-                                  **extra)  # fmt: skip
-            results = [(np.arange(len(points)), r)]
+            r = fit.fit_keypoints(model, points[seen], convention, cam, share_betas=True,
+                                  smoothness=settings.smoothness, **extra)  # fmt: skip
+            results = [(seen, r)]
+            count = len(points)
         else:
             points[..., 2] = (points[..., 2] > 0).astype(np.float64)  # COCO visibility → confidence
             frame, person = np.nonzero(points[..., 2].sum(-1) >= 6)
@@ -132,9 +136,9 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
                 cam = _camera(settings, sizes.get(array.frames[f]))
                 results.append((rows, fit.fit_keypoints(model, points[f, person[rows]], convention, cam, **extra)))
             labels = {"image_id": np.array([str(array.frames[f]) for f in frame]), "person": person}
-        count = sum(len(rows) for rows, _ in results)
-        error = np.empty(count)
-        converged = np.empty(count, bool)
+            count = len(frame)
+        error = np.full(count, np.nan)  # frames without the person: NaN, not converged, nearest frame's fit
+        converged = np.zeros(count, bool)
         params: dict[str, list] = {}
         for rows, r in results:
             error[rows] = r.reprojection_error
@@ -142,6 +146,10 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
             for key, value in r.params.items():
                 params.setdefault(key, []).append((rows, np.asarray(value)))
         params = {k: _gather(v, count) for k, v in params.items()}
+        fitted = np.concatenate([rows for rows, _ in results])
+        if len(fitted) < count:
+            nearest = fitted[np.abs(np.arange(count)[:, None] - fitted[None]).argmin(1)]
+            params = {k: v[nearest] for k, v in params.items()}
         betas = params["betas"].mean(0)
     elif kind == "joints":
         joints = np.load(path, allow_pickle=False)
@@ -170,8 +178,9 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
     summary = {
         "kind": kind,
         "frames": len(error),
-        "not_converged": np.flatnonzero(~converged).tolist(),
-        "mean_error": float(np.mean(error)),
+        "not_converged": np.flatnonzero(~converged & np.isfinite(error)).tolist(),
+        "missing": np.flatnonzero(~np.isfinite(error)).tolist(),  # no detection: the nearest frame's fit
+        "mean_error": float(np.nanmean(error)),
         "error_unit": "px" if kind in ("openpose", "coco") else "m",
     }
     return arrays, summary
