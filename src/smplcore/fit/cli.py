@@ -25,6 +25,7 @@ examples:
   smplcore fit joints.npy -o fit.npz --convention coco17        # or --joint-names pelvis,left_hip,...
   smplcore fit smplh_motion.npz -o smplx.npz --model-type smplx --model-path models/ --source-model-path models/
   smplcore fit inputs/ -o fits/ --image-size 1920,1080 --workers 2
+  smplcore fit inputs/ -o fits/ --image-size 1920,1080 --ray          # Ray tasks (local, or --ray auto)
 Exit status: 0 all fitted, 1 inputs skipped (bad input), 2 bad arguments. See docs/fit.md."""
 
 SUFFIXES = (".json", ".npy", ".npz")
@@ -64,6 +65,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--person", type=int, default=0, help="OpenPose: which person of each frame (default 0)")
     p.add_argument("--smoothness", type=float, default=1e-3, help="sequences: temporal smoothness weight")
     p.add_argument("--workers", type=int, default=1, help="folder of inputs: processes (default 1)")
+    p.add_argument(
+        "--ray",
+        nargs="?",
+        const="local",
+        default=None,
+        metavar="ADDRESS",
+        help="folder of inputs: run the fits as Ray tasks (a local instance, or ADDRESS / 'auto' for a cluster)",
+    )
     p.add_argument("--overwrite", action="store_true", help="refit inputs whose output exists")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
@@ -178,7 +187,9 @@ def run(args: argparse.Namespace) -> int:
             todo.append((str(src), str(dst)))
     bar = _bar(len(todo), args.no_progress or len(todo) < 2)
     try:
-        if args.workers > 1 and len(todo) > 1:
+        if args.ray is not None and todo:
+            _run_ray(todo, settings, args.ray, args.workers, entries, bar)
+        elif args.workers > 1 and len(todo) > 1:
             with ProcessPoolExecutor(args.workers, initializer=_init_worker) as pool:
                 futures = [pool.submit(fit_one, s, d, settings) for s, d in todo]
                 for fut in as_completed(futures):
@@ -194,6 +205,39 @@ def run(args: argparse.Namespace) -> int:
         if bar is not None:
             bar.close()
     return _report(entries, manifest)
+
+
+def _run_ray(todo: list, settings: Any, address: str, workers: int, entries: list, bar: Any) -> None:
+    """The fits as Ray tasks (a failed task is one skipped input)."""
+    try:
+        import ray
+    except ImportError:
+        raise ValueError("--ray needs Ray, an optional dependency: pip install 'ray'") from None
+    started = not ray.is_initialized()
+    if started:
+        kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
+        if address in ("", "local"):
+            kwargs["num_cpus"] = max(1, workers)
+        else:
+            kwargs["address"] = address
+        ray.init(**kwargs)
+    try:
+        remote = ray.remote(num_cpus=1, max_retries=1)(fit_one)
+        pending = {remote.remote(s, d, settings): (s, d) for s, d in todo}
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            for ref in done:
+                source, output = pending.pop(ref)
+                try:
+                    entries.append(ray.get(ref))
+                except Exception as exc:  # noqa: BLE001 -- one failed task is one skipped input
+                    entries.append({"input": source, "output": output, "status": "skipped",
+                                    "reason": f"Ray task failed: {type(exc).__name__}: {exc}"})  # fmt: skip
+                if bar is not None:
+                    bar.update()
+    finally:
+        if started:
+            ray.shutdown()
 
 
 def _report(entries: list[dict[str, Any]], manifest: Path | None) -> int:
