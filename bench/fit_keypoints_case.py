@@ -14,6 +14,7 @@ Errors: reprojection (px, mean over keypoints) and PA-MPJPE over the 17 COCO poi
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from pathlib import Path
@@ -123,9 +124,10 @@ def keypoints_case(count: int, rows: list, rng: np.random.Generator) -> dict:
     """Append the case's rows (case, contender, fits/s, error, ratio) and return the raw numbers."""
     model = smplcore.BodyModel(model_type="open", dtype=np.float32)
     _, keypoints, j3 = synthetic(model, count, rng)
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     r = fit.fit_keypoints(model, keypoints, camera=CAMERA)
     ours_dt = (time.perf_counter() - start) / count
+    ours_cpu = (time.process_time() - cpu) / count
     got = kp.convert(np.asarray(model(**r.params).joints, np.float64), model, "coco17")[0]
     ours_pa = pa_mpjpe(j3, got)
     case = f"COCO-17 2D, {count} images (open, 1 px noise)"
@@ -133,7 +135,7 @@ def keypoints_case(count: int, rows: list, rng: np.random.Generator) -> dict:
     def err(pa, rep):
         return f"PA {1000 * pa.mean():.1f} / {1000 * np.percentile(pa, 95):.1f}; reproj {rep.mean():.2f} px"
 
-    rows.append((case, "smplcore fit_keypoints", f"{1 / ours_dt:.1f} ({ours_dt:.3f} s/img)",
+    rows.append((case, "smplcore fit_keypoints", f"{1 / ours_dt:.1f} ({ours_dt:.3f} s/img; CPU {ours_cpu:.3f} s)",
                  err(ours_pa, r.reprojection_error), "1.0"))  # fmt: skip
     numbers = {"ours_s": ours_dt, "ours_pa": ours_pa, "ours_rep": r.reprojection_error, "converged": r.converged}
     try:
@@ -141,12 +143,14 @@ def keypoints_case(count: int, rows: list, rng: np.random.Generator) -> dict:
     except ImportError:
         return numbers
     model_t = smplcore.create(model_type="open")
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     k3 = smplify_lbfgs(model_t, keypoints)
     theirs_dt = (time.perf_counter() - start) / count
+    theirs_cpu = (time.process_time() - cpu) / count
     rep = np.linalg.norm(CAMERA.project(k3) - keypoints[..., :2], axis=-1).mean(1)
     pa = pa_mpjpe(j3, k3)
-    rows.append(("", "SMPLify-style LBFGS (torch, 4 x 30 it)", f"{1 / theirs_dt:.1f} ({theirs_dt:.3f} s/img)",
+    rows.append(("", "SMPLify-style LBFGS (torch, 4 x 30 it)",
+                 f"{1 / theirs_dt:.1f} ({theirs_dt:.3f} s/img; CPU {theirs_cpu:.3f} s)",
                  err(pa, rep), f"{theirs_dt / ours_dt:.2f}"))  # fmt: skip
     numbers.update(theirs_s=theirs_dt, theirs_pa=pa, theirs_rep=rep)
     return numbers
@@ -166,6 +170,8 @@ def main() -> None:
     numbers = keypoints_case(args.images, rows, np.random.default_rng(0))
     lines = [
         "# 2D keypoint fitting benchmark",
+        "",
+        f"Load average at the start: {os.getloadavg()[0]:.1f} (the machine is shared; wall times vary with it).",
         "",
         f"`python bench/fit_keypoints_case.py --images {args.images}` on {cpu_name()}, "
         f"smplcore {smplcore.__version__}, NumPy {np.__version__}. The setup is in the script's docstring.",

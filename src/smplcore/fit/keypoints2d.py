@@ -165,8 +165,8 @@ def fit_keypoints(
     min_points: int = 6,
     sigma: float = 100.0,
     shape_prior: float = 1e-3,
-    pose_prior: float = 3e-5,
-    joint_limits: float = 10.0,
+    pose_prior: float = 1e-5,
+    joint_limits: float = 100.0,
     bending: float = 1.0,
     gmm: str | GMMPrior | None = None,
     gmm_weight: float = 1e-4,
@@ -174,7 +174,7 @@ def fit_keypoints(
     anneal: tuple[float, ...] = (3.0, 1.0),
     multi_start: bool = True,
     max_iter: int = 25,
-    tol: float = 1e-5,
+    tol: float = 1e-4,
 ) -> FitResult:
     """Parameters of ``model`` whose keypoints, seen by ``camera``, match 2D detections.
 
