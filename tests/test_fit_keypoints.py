@@ -324,3 +324,21 @@ def test_fake_official_models_fit_too(fake_models, model_type):
                                                      model, "coco17")[0]) - keypoints[..., :2], axis=-1)  # fmt: skip
     assert set(r.params) >= {"global_orient", "body_pose", "betas", "transl"}
     assert r.reprojection_error[0] < 0.05 * start.mean()
+
+
+def test_a_moved_camera_sees_the_body_in_its_world_frame(open_model):
+    from scipy.spatial.transform import Rotation
+
+    rot = Rotation.from_rotvec([0.0, 0.4, 0.0]).as_matrix()  # the camera turned 23° about the vertical
+    cam = fit.Camera(focal=1000.0, center=(500.0, 500.0), rotation=rot, translation=(0.2, -0.1, 1.0))
+    rng = np.random.default_rng(8)
+    params = natural_poses(open_model, 2, rng)
+    # the bodies in front of the moved camera: world = Rᵀ (camera − t)
+    params["transl"] = (params["transl"] - cam.translation) @ rot
+    go = Rotation.from_matrix(rot.T @ Rotation.from_rotvec(params["global_orient"]).as_matrix()).as_rotvec()
+    params["global_orient"] = go
+    keypoints, exact, _ = scene(open_model, params, rng, camera=cam)
+    r = fit.fit_keypoints(open_model, keypoints, camera=cam)
+    noise = np.linalg.norm(keypoints[..., :2] - exact, axis=-1).mean(1)
+    assert np.all(r.reprojection_error < noise)
+    assert np.all(np.linalg.norm(np.asarray(r.params["transl"]) - params["transl"], axis=1) < 0.5)
