@@ -151,3 +151,16 @@ def test_openpose_frames_without_the_person_take_the_nearest_fit(tmp_path, open_
         assert np.isnan(data["fit_error"][2]) and not data["fit_converged"][2]
         assert np.all(np.isfinite(data["fit_error"][[0, 1, 3]]))
         np.testing.assert_allclose(data["poses"][2], data["poses"][1])  # nearest fitted frame (the earlier one)
+
+
+def test_fake_smplx_fit_writes_an_amass_smplx_layout(tmp_path, fake_models):
+    path = str(fake_models["smplx_neutral_npz"])
+    model = smplcore.BodyModel(path, model_type="smplx", use_pca=False, flat_hand_mean=True, dtype=np.float64)
+    joints = np.asarray(model(body_pose=np.full((3, 63), 0.1)).joints, np.float64)[:, :22]
+    np.save(tmp_path / "j.npy", joints)
+    out = tmp_path / "sx.npz"
+    assert main(["fit", str(tmp_path / "j.npy"), "-o", str(out), "--model-type", "smplx", "--model-path", path]) == 0
+    motion = load_motion(out)
+    assert motion.model_type == "smplx" and motion.poses.shape == (3, 165)
+    with np.load(out) as data:
+        assert data["fit_error"].max() < 0.005
