@@ -149,6 +149,45 @@ def _terms(body, kmap, camera, targets, weights, scale, sigma, free, shared, **p
     )
 
 
+def _place(body, kmap, camera, start, given, targets, weights, go_cols, transl_cols, sigma, max_iter, tol):
+    """Stage 1: translation and global orientation fitted to the torso and head keypoints, from the
+    camera-facing and the facing-away starts (the better kept). Returns the state, (B,) metres per
+    pixel at the bodies and the iterations run."""
+    batch = len(targets)
+    q, k = body.num_pose, body.num_coeffs
+    facings = ((np.pi, 0.0, 0.0), (0.0, 0.0, np.pi)) if "global_orient" not in given else (None,)
+    candidates = []
+    for facing in facings:
+        state = start.copy()
+        if facing is not None:
+            state.pose[:, go_cols] = _rotation_of(camera, np.array(facing))
+        transl, scale = _initial_translation(body, kmap, camera, state, targets, weights)
+        if "transl" not in given:
+            state.transl = transl
+        candidates.append((state, scale))
+    rigid = np.array([n in TORSO + HEAD for n in kmap.names])
+    w1 = np.where(((weights > 0) & rigid).sum(1, keepdims=True) >= 3, weights * rigid, weights)
+    free = np.zeros(q + k + 3, bool)
+    free[go_cols] = free[transl_cols] = True
+    none = np.zeros_like(free)
+    both = State(*(np.concatenate([getattr(c[0], f) for c in candidates]) for f in ("pose", "coeffs", "transl")))
+    scale2 = np.concatenate([c[1] for c in candidates])
+    reps = len(candidates)
+    terms = _terms(
+        body, kmap, camera, np.tile(targets, (reps, 1, 1)), np.tile(w1, (reps, 1)), scale2, sigma, free, none
+    )
+    both, cost, _, iterations = levenberg_marquardt(body, terms, both, max_iter=max_iter, tol=tol)
+    pick = np.argmin(cost.reshape(reps, batch), axis=0) * batch + np.arange(batch)
+    state = State(both.pose[pick], both.coeffs[pick], both.transl[pick])
+    scale = scale2[pick]
+    return state, scale, iterations
+
+
+def _where(mask: np.ndarray, a: State, b: State) -> State:
+    """Per body, ``a`` where ``mask`` else ``b``."""
+    return State(*(np.where(mask[:, None], getattr(a, f), getattr(b, f)) for f in ("pose", "coeffs", "transl")))
+
+
 @single_threaded_blas
 def fit_keypoints(
     model: Any,
@@ -241,33 +280,9 @@ def fit_keypoints(
     go = blocks["global_orient"]
     go_cols = np.arange(go.start, go.start + 3)
     transl_cols = q + k + np.arange(3)
-    # stage 1: two starts (facing the camera, facing away), torso and head keypoints
-    given = init or {}
-    facings = ((np.pi, 0.0, 0.0), (0.0, 0.0, np.pi)) if "global_orient" not in given else (None,)
-    candidates = []
-    for facing in facings:
-        state = start.copy()
-        if facing is not None:
-            state.pose[:, go_cols] = _rotation_of(camera, np.array(facing))
-        transl, scale = _initial_translation(body, kmap, camera, state, targets, weights)
-        if "transl" not in given:
-            state.transl = transl
-        candidates.append((state, scale))
-    rigid = np.array([n in TORSO + HEAD for n in kmap.names])
-    w1 = np.where(((weights > 0) & rigid).sum(1, keepdims=True) >= 3, weights * rigid, weights)
-    free = np.zeros(q + k + 3, bool)
-    free[go_cols] = free[transl_cols] = True
-    none = np.zeros_like(free)
-    both = State(*(np.concatenate([getattr(c[0], f) for c in candidates]) for f in ("pose", "coeffs", "transl")))
-    scale2 = np.concatenate([c[1] for c in candidates])
-    reps = len(candidates)
-    terms = _terms(
-        body, kmap, camera, np.tile(targets, (reps, 1, 1)), np.tile(w1, (reps, 1)), scale2, sigma, free, none
+    state, scale, iterations = _place(
+        body, kmap, camera, start, init or {}, targets, weights, go_cols, transl_cols, sigma, max_iter, tol
     )
-    both, cost, _, iterations = levenberg_marquardt(body, terms, both, max_iter=max_iter, tol=tol)
-    pick = np.argmin(cost.reshape(reps, batch), axis=0) * batch + np.arange(batch)
-    state = State(both.pose[pick], both.coeffs[pick], both.transl[pick])
-    scale = scale2[pick]
     # stage 2: everything, priors annealed, from the rest pose and from a natural pose (the better is kept)
     bp = blocks["body_pose"]
     free = np.zeros(q + k + 3, bool)
@@ -280,7 +295,7 @@ def fit_keypoints(
         shared[q : q + body.num_betas] = True
     priors = dict(shape_prior=shape_prior, pose_prior=pose_prior, gmm_prior=gmm_weight)
     starts = [state]
-    if multi_start and "body_pose" not in given:
+    if multi_start and "body_pose" not in (init or {}):
         other = state.copy()
         other.pose[:, bp.start : bp.start + bp.width] = _natural_pose(body, bp)
         starts.append(other)
@@ -301,16 +316,7 @@ def fit_keypoints(
             continue
         coupled = bool(shared.any() or smoothness) and batch > 1
         better = np.full(batch, cost.sum() < best[1].sum()) if coupled else cost < best[1]
-        best = (
-            State(
-                *(
-                    np.where(better[:, None], getattr(state, f), getattr(best[0], f))
-                    for f in ("pose", "coeffs", "transl")
-                )
-            ),
-            np.where(better, cost, best[1]),
-            np.where(better, converged, best[2]),
-        )
+        best = (_where(better, state, best[0]), np.where(better, cost, best[1]), np.where(better, converged, best[2]))
     state, _, converged = best
     dist = reprojection(body, terms, state)
     used = weights > 0
