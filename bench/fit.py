@@ -6,7 +6,9 @@ Cases (float32 targets made by the same model, the same targets for every conten
 - vertices → parameters on fake official SMPL and SMPL-X files and the open model: smplcore.fit.fit_vertices
   against smplfitter's BodyFitter (1 and 3 iterations);
 - 22 joints → parameters, a 256-frame sequence on the open model: smplcore.fit.fit_joints against a
-  joints2smpl-style Adam loop (150 iterations over joint MSE + a pose L2 prior, torch autograd).
+  joints2smpl-style Adam loop (150 iterations over joint MSE + a pose L2 prior, torch autograd);
+- COCO-17 2D keypoints (1 px noise, known camera) on the open model: smplcore.fit.fit_keypoints against an
+  SMPLify-style torch LBFGS loop (bench/fit_keypoints_case.py, which also runs alone).
 Errors are mean per-vertex (per-joint) distances per body: mean and 95th percentile over bodies.
 """
 
@@ -146,6 +148,10 @@ def main() -> None:
         vertices_case(key, batch, rows, rng)
         print(rows[-3:], flush=True)
     joints_case(32 if args.quick else 256, rows, rng)
+    print(rows[-2:], flush=True)
+    from fit_keypoints_case import keypoints_case  # the COCO-17 2D case (also runnable alone)
+
+    keypoints_case(8 if args.quick else 32, rows, np.random.default_rng(0))
     print(rows[-2:], flush=True)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     lines = [

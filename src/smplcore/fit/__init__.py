@@ -5,11 +5,27 @@ squares for shape and translation) and refines with Levenberg–Marquardt on the
 full model (pose correctives included), batched over bodies. Works with torch models of
 :func:`smplcore.create` and the NumPy :class:`smplcore.BodyModel` alike (the solver runs in float64
 NumPy either way).
+
+``fit_keypoints`` fits 2D keypoints seen by a pinhole :class:`Camera` (OpenCV convention), SMPLify-style:
+robust reprojection cost, staged Levenberg–Marquardt, open priors (anatomical joint limits, elbow/knee
+bending) and SMPLify's GMM when the user has it (:class:`GMMPrior`).
 """
 
+from smplcore.fit.camera import Camera
 from smplcore.fit.convert import convert, correspondence
 from smplcore.fit.joints import fit_joints
+from smplcore.fit.keypoints2d import fit_keypoints
+from smplcore.fit.priors import GMMPrior
 from smplcore.fit.result import FitResult
 from smplcore.fit.vertices import fit_vertices
 
-__all__ = ["FitResult", "convert", "correspondence", "fit_joints", "fit_vertices"]
+__all__ = [
+    "Camera",
+    "FitResult",
+    "GMMPrior",
+    "convert",
+    "correspondence",
+    "fit_joints",
+    "fit_keypoints",
+    "fit_vertices",
+]

@@ -1,0 +1,121 @@
+"""A pinhole camera in the OpenCV convention: x right, y down, z forward (into the scene), pixels.
+
+A world point ``X`` is seen at ``X_c = R X + t`` in camera coordinates and projected to
+``u = f_x X_c,x / X_c,z + c_x``, ``v = f_y X_c,y / X_c,z + c_y``. SMPL's bodies are Y up and face +Z;
+seen by the identity camera a standing body facing the camera therefore has ``global_orient`` ≈ (π, 0, 0)
+(:func:`smplcore.fit.fit_keypoints` starts there).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from smplcore.errors import ShapeError
+
+
+def _finite(value: Any, name: str, shape: tuple[int, ...]) -> np.ndarray:
+    array = np.asarray(value.detach().cpu().numpy() if hasattr(value, "detach") else value, dtype=np.float64)
+    if array.shape != shape:
+        raise ShapeError(f"{name}: expected shape {shape}, got {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name}: holds NaN or infinite values")
+    return array
+
+
+@dataclass(frozen=True, init=False)
+class Camera:
+    """A pinhole camera (OpenCV convention).
+
+    Parameters
+    ----------
+    focal : f (pixels) or (f_x, f_y).
+    center : (c_x, c_y) principal point (pixels).
+    rotation : (3, 3) world-to-camera rotation R, or an axis-angle (3,); default the identity.
+    translation : (3,) world-to-camera translation t (metres); default zero.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from smplcore import fit
+    >>> cam = fit.Camera(focal=1000.0, center=(320.0, 240.0))
+    >>> cam.project(np.array([[0.1, -0.2, 2.0]]))
+    array([[370., 140.]])
+    """
+
+    focal: np.ndarray  # (2,) f_x, f_y
+    center: np.ndarray  # (2,)
+    rotation: np.ndarray  # (3, 3)
+    translation: np.ndarray  # (3,)
+
+    def __init__(self, focal: Any, center: Any, rotation: Any = None, translation: Any = None) -> None:
+        f = np.asarray(focal, dtype=np.float64)
+        f = np.full(2, float(f)) if f.ndim == 0 else _finite(f, "focal", (2,))
+        if not np.all(np.isfinite(f)) or np.any(f <= 0):
+            raise ValueError(f"focal: expected positive focal lengths in pixels, got {f.tolist()}")
+        if center is None:
+            raise ValueError("center: the principal point (c_x, c_y) in pixels is needed (often the image centre)")
+        c = _finite(center, "center", (2,))
+        if rotation is None:
+            rot = np.eye(3)
+        else:
+            rot = np.asarray(rotation, dtype=np.float64)
+            if rot.shape == (3,):
+                from smplcore.engine import rodrigues
+
+                rot = rodrigues(_finite(rot, "rotation", (3,))[None])[0]
+            rot = _finite(rot, "rotation", (3, 3))
+            if np.abs(rot @ rot.T - np.eye(3)).max() > 1e-5 or np.linalg.det(rot) < 0:
+                raise ValueError("rotation: expected a rotation matrix (orthonormal, determinant +1) or an axis-angle")
+        t = np.zeros(3) if translation is None else _finite(translation, "translation", (3,))
+        for name, value in (("focal", f), ("center", c), ("rotation", rot), ("translation", t)):
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+
+    @classmethod
+    def from_image_size(cls, width: float, height: float, focal: Any = None) -> Camera:
+        """A camera for an image of ``width`` × ``height`` pixels: the principal point at the centre and,
+        without ``focal``, the focal length set to the image diagonal (a field of view of about 53°
+        across the diagonal — a guess; pass the real focal when it is known)."""
+        if not (width > 0 and height > 0):
+            raise ValueError(f"width, height: expected a positive image size, got {width} x {height}")
+        f = float(np.hypot(width, height)) if focal is None else focal
+        return cls(focal=f, center=(width / 2.0, height / 2.0))
+
+    def to_camera(self, points: Any) -> np.ndarray:
+        """(..., 3) world points in camera coordinates ``R X + t``."""
+        x = np.asarray(points, dtype=np.float64)
+        if x.shape[-1:] != (3,):
+            raise ShapeError(f"points: expected shape (..., 3), got {x.shape}")
+        return x @ self.rotation.T + self.translation
+
+    def project(self, points: Any) -> np.ndarray:
+        """(..., 2) pixel coordinates of (..., 3) world points (points behind the camera give
+        meaningless values; check ``to_camera(points)[..., 2] > 0``)."""
+        xc = self.to_camera(points)
+        z = xc[..., 2:3]
+        z = np.where(np.abs(z) < 1e-9, 1e-9, z)
+        return xc[..., :2] / z * self.focal + self.center
+
+    def project_jacobian(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pixels (..., 2) of world points (..., 3) and their derivative (..., 2, 3) with respect to
+        the world points."""
+        xc = self.to_camera(points)
+        z = np.maximum(xc[..., 2], 1e-6)
+        inv = 1.0 / z
+        uv = xc[..., :2] * inv[..., None] * self.focal + self.center
+        d = np.zeros((*xc.shape[:-1], 2, 3))
+        d[..., 0, 0] = self.focal[0] * inv
+        d[..., 1, 1] = self.focal[1] * inv
+        d[..., 0, 2] = -self.focal[0] * xc[..., 0] * inv * inv
+        d[..., 1, 2] = -self.focal[1] * xc[..., 1] * inv * inv
+        return uv, d @ self.rotation
+
+    def __repr__(self) -> str:
+        rot = "identity" if np.allclose(self.rotation, np.eye(3)) else "R"
+        return (
+            f"Camera(focal=({self.focal[0]:g}, {self.focal[1]:g}), center=({self.center[0]:g}, {self.center[1]:g}), "
+            f"rotation={rot}, translation={tuple(float(v) for v in self.translation)})"
+        )

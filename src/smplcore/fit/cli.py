@@ -1,0 +1,269 @@
+"""``smplcore fit INPUT -o OUT``: keypoints, joints or another model's motion to an AMASS-style ``.npz``.
+
+One input writes one file; a folder of inputs writes one file per input under OUT (a folder), with the
+motion pipeline's atomic writes (a killed run leaves complete files or none), resumable (existing
+outputs are kept unless ``--overwrite``), ``--workers`` processes, bad inputs reported and skipped
+(exit status 1), fits that did not converge listed in the summary and in ``OUT/fit_manifest.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+EPILOG = """\
+examples:
+  smplcore fit openpose_frames/ -o fit.npz --focal 1000 --center 960,540
+  smplcore fit person_keypoints.json -o fit.npz                # COCO: cameras from the images' sizes
+  smplcore fit joints.npy -o fit.npz --convention coco17        # or --joint-names pelvis,left_hip,...
+  smplcore fit smplh_motion.npz -o smplx.npz --model-type smplx --model-path models/ --source-model-path models/
+  smplcore fit inputs/ -o fits/ --image-size 1920,1080 --workers 2
+  smplcore fit inputs/ -o fits/ --image-size 1920,1080 --ray          # Ray tasks (local, or --ray auto)
+Exit status: 0 all fitted, 1 inputs skipped (bad input), 2 bad arguments. See docs/fit.md."""
+
+SUFFIXES = (".json", ".npy", ".npz")
+MANIFEST = "fit_manifest.json"
+
+
+def _floats(text: str) -> tuple[float, ...]:
+    try:
+        return tuple(float(v) for v in text.replace(",", " ").split())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected numbers separated by commas, got {text!r}") from None
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``smplcore fit``."""
+    p = subparsers.add_parser(
+        "fit",
+        help="fit a body model to 2D keypoints, 3D joints or another model's motion; write AMASS-style .npz",
+        description="Fit model parameters to INPUT (an OpenPose JSON folder, a COCO keypoint .json, a .npy of "
+        "joints (T, n, 3), an AMASS-style .npz of another model, or a folder of such inputs) and write an "
+        "AMASS-style .npz that smplcore export / process read.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("input", type=Path, metavar="INPUT")
+    p.add_argument("-o", "--output", type=Path, required=True, help="output .npz (a folder for a folder of inputs)")
+    p.add_argument("--model-type", default="open", help="model to fit: open (default), smpl, smplh, smplx")
+    p.add_argument("--model-path", default=None, help="model file or folder (default: the open model)")
+    p.add_argument("--gender", default="neutral")
+    p.add_argument("--source-model-path", default=None, help="conversion: the source motion's model (default: open)")
+    p.add_argument("--convention", default=None, help="keypoint/joint convention (default: the reader's)")
+    p.add_argument("--joint-names", default=None, help=".npy joints: the model joint names, comma-separated")
+    p.add_argument("--focal", type=_floats, default=None, help="2D: focal length f or fx,fy (pixels)")
+    p.add_argument("--center", type=_floats, default=None, help="2D: principal point cx,cy (pixels)")
+    p.add_argument("--image-size", type=_floats, default=None, help="2D: W,H; camera centred, focal = diagonal")
+    p.add_argument("--fps", type=float, default=30.0, help="frame rate written to the output (default 30)")
+    p.add_argument("--person", type=int, default=0, help="OpenPose: which person of each frame (default 0)")
+    p.add_argument("--smoothness", type=float, default=1e-3, help="sequences: temporal smoothness weight")
+    p.add_argument("--workers", type=int, default=1, help="folder of inputs: processes (default 1)")
+    p.add_argument(
+        "--ray",
+        nargs="?",
+        const="local",
+        default=None,
+        metavar="ADDRESS",
+        help="folder of inputs: run the fits as Ray tasks (a local instance, or ADDRESS / 'auto' for a cluster)",
+    )
+    p.add_argument("--overwrite", action="store_true", help="refit inputs whose output exists")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(run=run)
+
+
+def _settings(args: argparse.Namespace):
+    from smplcore.fit.inputs import FitSettings
+
+    for name in ("center", "image_size"):
+        value = getattr(args, name)
+        if value is not None and len(value) != 2:
+            raise ValueError(f"--{name.replace('_', '-')}: expected two numbers, got {value}")
+    if args.focal is not None and len(args.focal) not in (1, 2):
+        raise ValueError(f"--focal: expected f or fx,fy, got {args.focal}")
+    names = None if args.joint_names is None else tuple(n.strip() for n in args.joint_names.split(",") if n.strip())
+    return FitSettings(
+        model_type=args.model_type,
+        model_path=args.model_path,
+        gender=args.gender,
+        convention=args.convention,
+        joint_names=names,
+        focal=args.focal,
+        center=args.center,
+        image_size=args.image_size,
+        fps=args.fps,
+        person=args.person,
+        smoothness=args.smoothness,
+        source_model_path=args.source_model_path,
+    )
+
+
+def _is_single(path: Path) -> bool:
+    """A file, or a folder of OpenPose output (``*_keypoints.json`` files, as OpenPose names them, only)."""
+    if path.is_file():
+        return True
+    if not path.is_dir():
+        return False
+    entries = [p for p in path.iterdir() if not p.name.startswith(".")]
+    return bool(entries) and all(p.is_file() and p.name.lower().endswith("_keypoints.json") for p in entries)
+
+
+def find_inputs(folder: Path) -> list[Path]:
+    """The inputs of a folder: files with a known suffix and sub-folders of OpenPose JSON, sorted."""
+    found = []
+    for p in sorted(folder.iterdir()):
+        if p.name.startswith(".") or p.name == MANIFEST:
+            continue
+        if (p.is_file() and p.suffix.lower() in SUFFIXES) or (p.is_dir() and _is_single(p)):
+            found.append(p)
+    return found
+
+
+_MODEL: dict[str, Any] = {}
+
+
+def fit_one(source: str, output: str, settings: Any) -> dict[str, Any]:
+    """Fit ``source`` and write ``output`` atomically; never raises for a bad input (a manifest entry)."""
+    from smplcore.fit.inputs import build_model, fit_input
+    from smplcore.motion.process.task import atomic_write
+
+    start = time.perf_counter()
+    entry: dict[str, Any] = {"input": source, "output": output, "status": "skipped"}
+    try:
+        key = f"{settings.model_type}:{settings.model_path}:{settings.gender}"
+        if key not in _MODEL:
+            _MODEL[key] = build_model(settings)
+        arrays, summary = fit_input(source, settings, _MODEL[key])
+        atomic_write(Path(output), lambda fh: np.savez(fh, **arrays))
+        entry.update(status="done", **summary)
+    except Exception as exc:  # noqa: BLE001 -- one bad input is reported, never fatal to the batch
+        entry["reason"] = str(exc) if isinstance(exc, (ValueError, OSError)) else f"{type(exc).__name__}: {exc}"
+    entry["seconds"] = round(time.perf_counter() - start, 3)
+    return entry
+
+
+def _init_worker() -> None:
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1)
+
+
+def _bar(total: int, disable: bool):
+    try:
+        from tqdm import tqdm
+    except ImportError:  # optional
+        return None
+    return tqdm(total=total, unit="input", desc="fit", disable=True if disable else None, file=sys.stderr)
+
+
+def run(args: argparse.Namespace) -> int:
+    settings = _settings(args)
+    source, out = Path(args.input), Path(args.output)
+    if not source.exists():
+        raise FileNotFoundError(f"{source}: no such file or folder")
+    if _is_single(source):
+        if out.suffix.lower() != ".npz":
+            raise ValueError(f"-o/--output: expected a .npz file for one input, got {out}")
+        tasks = [(source, out)]
+        manifest = None
+    else:
+        inputs = find_inputs(source)
+        if not inputs:
+            raise ValueError(f"{source}: no inputs (.json, .npy, .npz files or OpenPose folders)")
+        tasks = [(p, out / (p.stem if p.is_file() else p.name)) for p in inputs]
+        tasks = [(p, o.with_name(o.name + ".npz")) for p, o in tasks]
+        manifest = out / MANIFEST
+    entries, todo = [], []
+    for src, dst in tasks:
+        if dst.exists() and not args.overwrite:
+            entries.append({"input": str(src), "output": str(dst), "status": "exists"})
+        else:
+            todo.append((str(src), str(dst)))
+    bar = _bar(len(todo), args.no_progress or len(todo) < 2)
+    try:
+        if args.ray is not None and todo:
+            _run_ray(todo, settings, args.ray, args.workers, entries, bar)
+        elif args.workers > 1 and len(todo) > 1:
+            with ProcessPoolExecutor(args.workers, initializer=_init_worker) as pool:
+                futures = [pool.submit(fit_one, s, d, settings) for s, d in todo]
+                for fut in as_completed(futures):
+                    entries.append(fut.result())
+                    if bar is not None:
+                        bar.update()
+        else:
+            for s, d in todo:
+                entries.append(fit_one(s, d, settings))
+                if bar is not None:
+                    bar.update()
+    finally:
+        if bar is not None:
+            bar.close()
+    return _report(entries, manifest)
+
+
+def _run_ray(todo: list, settings: Any, address: str, workers: int, entries: list, bar: Any) -> None:
+    """The fits as Ray tasks (a failed task is one skipped input)."""
+    try:
+        import ray
+    except ImportError:
+        raise ValueError("--ray needs Ray, an optional dependency: pip install 'ray'") from None
+    started = not ray.is_initialized()
+    if started:
+        kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
+        if address in ("", "local"):
+            kwargs["num_cpus"] = max(1, workers)
+        else:
+            kwargs["address"] = address
+        ray.init(**kwargs)
+    try:
+        remote = ray.remote(num_cpus=1, max_retries=1)(fit_one)
+        pending = {remote.remote(s, d, settings): (s, d) for s, d in todo}
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            for ref in done:
+                source, output = pending.pop(ref)
+                try:
+                    entries.append(ray.get(ref))
+                except Exception as exc:  # noqa: BLE001 -- one failed task is one skipped input
+                    entries.append({"input": source, "output": output, "status": "skipped",
+                                    "reason": f"Ray task failed: {type(exc).__name__}: {exc}"})  # fmt: skip
+                if bar is not None:
+                    bar.update()
+    finally:
+        if started:
+            ray.shutdown()
+
+
+def _report(entries: list[dict[str, Any]], manifest: Path | None) -> int:
+    from smplcore.motion.process.task import atomic_write
+
+    done = [e for e in entries if e["status"] == "done"]
+    skipped = [e for e in entries if e["status"] == "skipped"]
+    kept = [e for e in entries if e["status"] == "exists"]
+    for e in skipped:
+        print(f"skipped {e['input']}: {e['reason']}", file=sys.stderr)
+    for e in done:
+        unit = e.get("error_unit", "")
+        scale, shown = (1000.0, "mm") if unit == "m" else (1.0, unit)
+        print(f"wrote {e['output']}: {e['frames']} frames, mean error {e['mean_error'] * scale:.2f} {shown}")
+        if e.get("missing"):
+            print(f"  frames without a detection (filled from the nearest frame): {e['missing'][:20]}")
+    lagging = [e for e in done if e.get("not_converged")]
+    if lagging:
+        print("not converged:")
+        for e in lagging:
+            frames = e["not_converged"]
+            more = f" … (+{len(frames) - 20})" if len(frames) > 20 else ""
+            print(f"  {e['input']}: frames {frames[:20]}{more}")
+    print(f"{len(done)} fitted, {len(skipped)} skipped (bad input), {len(kept)} already done, "
+          f"{len(lagging)} with frames not converged")  # fmt: skip
+    if manifest is not None:
+        text = json.dumps({"entries": entries}, indent=1).encode()
+        atomic_write(manifest, lambda fh: fh.write(text))
+    return 1 if skipped else 0

@@ -1,0 +1,236 @@
+"""What ``smplcore fit`` reads and writes: one input (2D keypoints, 3D joints, another model's motion) to
+one AMASS-style motion ``.npz`` of the fitted model.
+
+Inputs: a folder of OpenPose JSON files (one sequence; ``person`` picks the person), a COCO keypoint
+JSON (every annotated person an independent body, in image order), a ``.npy`` of 3D joints (T, n, 3),
+or an AMASS-style ``.npz`` of another model (converted). The output is what
+:func:`smplcore.motion.load_motion` (``smplcore export`` / ``smplcore process``) reads, plus
+``fit_error`` (T,) (pixels for 2D, metres otherwise), ``fit_converged`` (T,) and ``fit_kind``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from smplcore.errors import ModelFileError
+
+
+@dataclass(frozen=True)
+class FitSettings:
+    """The options of a ``smplcore fit`` run (plain values, so that workers can receive them)."""
+
+    model_type: str = "open"
+    model_path: str | None = None
+    gender: str = "neutral"
+    convention: str | None = None
+    joint_names: tuple[str, ...] | None = None
+    focal: tuple[float, ...] | None = None
+    center: tuple[float, float] | None = None
+    image_size: tuple[float, float] | None = None
+    fps: float = 30.0
+    person: int = 0
+    smoothness: float = 1e-3
+    source_model_path: str | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def input_kind(path: Path) -> str:
+    """``openpose`` (a folder of JSON files), ``coco`` (a JSON file), ``joints`` (``.npy``) or ``motion`` (``.npz``)."""
+    if path.is_dir():
+        if any(p.suffix.lower() == ".json" for p in path.iterdir()):
+            return "openpose"
+        raise ValueError(f"{path}: a folder holding no OpenPose .json files")
+    kinds = {".json": "coco", ".npy": "joints", ".npz": "motion"}
+    kind = kinds.get(path.suffix.lower())
+    if kind is None:
+        raise ValueError(f"{path}: unsupported input {path.suffix!r}; expected an OpenPose folder, .json, .npy or .npz")
+    return kind
+
+
+def build_model(settings: FitSettings, model_type: str | None = None, model_path: str | None = None) -> Any:
+    """The NumPy model the fits use (full-pose hands, flat hand mean: AMASS's layout)."""
+    from smplcore import BodyModel
+
+    model_type = model_type or settings.model_type
+    path = model_path if model_path is not None else settings.model_path
+    if path is None:
+        if model_type not in ("open", None):
+            raise ValueError(f"--model-path: a {model_type} model needs its file or folder (only 'open' ships)")
+        return BodyModel(model_type="open", dtype=np.float64)
+    options: dict[str, Any] = {"dtype": np.float64}
+    if model_type in ("smplh", "smplx", "mano"):
+        options.update(use_pca=False, flat_hand_mean=True)
+    return BodyModel(path, model_type=model_type, gender=settings.gender, **options)
+
+
+def _camera(settings: FitSettings, size: tuple[float, float] | None = None):
+    from smplcore.fit.camera import Camera
+
+    size = settings.image_size or size
+    if settings.focal is not None:
+        center = settings.center
+        if center is None and size is not None:
+            center = (size[0] / 2.0, size[1] / 2.0)
+        if center is None:
+            raise ValueError("--center: the principal point is needed with --focal (or give --image-size)")
+        focal = settings.focal[0] if len(settings.focal) == 1 else settings.focal
+        return Camera(focal=focal, center=center)
+    if size is not None:
+        return Camera.from_image_size(*size)
+    raise ValueError("camera: 2D keypoints need the camera: pass --focal and --center, or --image-size W,H")
+
+
+def _coco_image_sizes(path: Path) -> dict[Any, tuple[float, float]]:
+    with open(path, encoding="utf-8") as fh:
+        doc = json.load(fh)
+    sizes = {}
+    for image in doc.get("images", []) if isinstance(doc, dict) else []:
+        if isinstance(image, dict) and image.get("width") and image.get("height"):
+            sizes[image.get("id")] = (float(image["width"]), float(image["height"]))
+    return sizes
+
+
+def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tuple[dict[str, np.ndarray], dict]:
+    """Fit one input; returns the output arrays and a summary (kind, frames, not-converged frames, errors)."""
+    from smplcore import fit
+
+    path = Path(path)
+    kind = input_kind(path)
+    model = build_model(settings) if model is None else model
+    extra = dict(settings.extra)
+    labels = None
+    if kind in ("openpose", "coco"):
+        from smplcore import keypoints as kp
+
+        array = kp.read_openpose(path) if kind == "openpose" else kp.read_coco(path)
+        convention = settings.convention or array.convention
+        if convention is None:
+            raise ValueError(f"--convention: cannot tell the keypoints' convention in {path}; give it")
+        points = array.points.astype(np.float64)
+        if kind == "openpose":
+            if points.shape[1] <= settings.person:
+                raise ValueError(f"--person: {path} has at most {points.shape[1]} people per frame")
+            points = points[:, settings.person]
+            seen = np.flatnonzero((points[..., 2] >= 0.1).sum(-1) >= 6)  # OpenPose gives zeros for a missing person
+            if len(seen) == 0:
+                raise ValueError(f"keypoints: no frame of {path} shows person {settings.person} with 6 keypoints")
+            cam = _camera(settings)
+            r = fit.fit_keypoints(model, points[seen], convention, cam, share_betas=True,
+                                  smoothness=settings.smoothness, **extra)  # fmt: skip
+            results = [(seen, r)]
+            count = len(points)
+        else:
+            points[..., 2] = (points[..., 2] > 0).astype(np.float64)  # COCO visibility → confidence
+            frame, person = np.nonzero(points[..., 2].sum(-1) >= 6)
+            if len(frame) == 0:
+                raise ValueError(f"keypoints: no person in {path} has 6 or more labelled keypoints")
+            sizes = _coco_image_sizes(path) if settings.focal is None and settings.image_size is None else {}
+            results = []
+            for f in np.unique(frame):  # one camera per image
+                rows = np.flatnonzero(frame == f)
+                cam = _camera(settings, sizes.get(array.frames[f]))
+                results.append((rows, fit.fit_keypoints(model, points[f, person[rows]], convention, cam, **extra)))
+            labels = {"image_id": np.array([str(array.frames[f]) for f in frame]), "person": person}
+            count = len(frame)
+        error = np.full(count, np.nan)  # frames without the person: NaN, not converged, nearest frame's fit
+        converged = np.zeros(count, bool)
+        params: dict[str, list] = {}
+        for rows, r in results:
+            error[rows] = r.reprojection_error
+            converged[rows] = r.converged
+            for key, value in r.params.items():
+                params.setdefault(key, []).append((rows, np.asarray(value)))
+        params = {k: _gather(v, count) for k, v in params.items()}
+        fitted = np.concatenate([rows for rows, _ in results])
+        if len(fitted) < count:
+            nearest = fitted[np.abs(np.arange(count)[:, None] - fitted[None]).argmin(1)]
+            params = {k: v[nearest] for k, v in params.items()}
+        betas = params["betas"].mean(0)
+    elif kind == "joints":
+        joints = np.load(path, allow_pickle=False)
+        names = settings.joint_names
+        weights = None
+        if names is None and settings.convention is not None:
+            names, weights = _convention_joints(model, settings.convention, joints.shape[1])
+        r = fit.fit_joints(model, joints, names, weights, share_betas=True, smoothness=settings.smoothness, **extra)
+        params, error, converged = {k: np.asarray(v) for k, v in r.params.items()}, r.joint_error, r.converged
+        betas = params["betas"][0]
+    else:
+        from smplcore.motion import load_motion
+
+        motion = load_motion(path)
+        source_type = "open" if settings.source_model_path is None else motion.model_type
+        source = build_model(settings, source_type, settings.source_model_path)
+        src = motion.model_params(source_type, list(source.skeleton_joint_names))
+        src["betas"] = src["betas"][:, : source.num_betas]
+        r = fit.convert(src, source, model, share_betas=True, **extra)
+        params, error, converged = {k: np.asarray(v) for k, v in r.params.items()}, r.vertex_error, r.converged
+        betas = params["betas"][0]
+    arrays = _motion_arrays(model, params, betas, settings)
+    arrays.update(fit_error=error, fit_converged=converged, fit_kind=np.array(kind))
+    if labels is not None:
+        arrays.update(labels)
+    summary = {
+        "kind": kind,
+        "frames": len(error),
+        "not_converged": np.flatnonzero(~converged & np.isfinite(error)).tolist(),
+        "missing": np.flatnonzero(~np.isfinite(error)).tolist(),  # no detection: the nearest frame's fit
+        "mean_error": float(np.nanmean(error)),
+        "error_unit": "px" if kind in ("openpose", "coco") else "m",
+    }
+    return arrays, summary
+
+
+def _gather(parts: list[tuple[np.ndarray, np.ndarray]], count: int) -> np.ndarray:
+    out = np.zeros((count, *parts[0][1].shape[1:]))
+    for rows, value in parts:
+        out[rows] = value
+    return out
+
+
+def _convention_joints(model: Any, convention: str, count: int) -> tuple[list[str], np.ndarray]:
+    """Model joint names for the points of ``convention`` (points the model lacks get weight 0)."""
+    from smplcore import keypoints as kp
+
+    plan = kp.plan(kp.layout(convention), model)
+    inverse = kp.plan(model, convention)
+    if len(inverse.dst) != count:
+        raise ValueError(f"--convention: {convention} has {len(inverse.dst)} points, the joints file has {count}")
+    names = list(model.joint_names)
+    picked, weights = [], np.zeros(count)
+    for k in range(count):
+        i = inverse.first[k]
+        ok = inverse.mask[k] and inverse.first[k] == inverse.second[k] and inverse.how[k] == "exact"
+        picked.append(names[i] if ok else names[0])
+        weights[k] = 1.0 if ok else 0.0
+    del plan
+    return picked, weights
+
+
+def _motion_arrays(model: Any, params: dict[str, np.ndarray], betas: np.ndarray, settings: FitSettings) -> dict:
+    """AMASS-style arrays of fitted parameters (``poses`` in the model's block order)."""
+    from smplcore.motion import POSE_WIDTH
+
+    blocks = [np.asarray(params[b]).reshape(len(params["transl"]), -1) for b in model.pose_blocks]
+    poses = np.concatenate(blocks, axis=1)
+    model_type = "smpl" if model.model_type == "open" else model.model_type
+    if POSE_WIDTH.get(model_type) != poses.shape[1]:
+        raise ModelFileError(
+            "<fit>", f"the {model.model_type} fit gives {poses.shape[1]} pose values, not an AMASS layout"
+        )
+    arrays = {
+        "poses": poses,
+        "trans": np.asarray(params["transl"], np.float64),
+        "betas": np.asarray(betas, np.float64),
+        "gender": np.array(settings.gender),
+        "surface_model_type": np.array(model_type),
+        ("mocap_frame_rate" if model_type == "smplx" else "mocap_framerate"): np.array(float(settings.fps)),
+    }
+    if "expression" in params:
+        arrays["expression"] = np.asarray(params["expression"], np.float64)
+    return arrays

@@ -1,0 +1,329 @@
+"""Fit a body model to 2D keypoints seen by a known pinhole camera (SMPLify-style, without registration).
+
+Stages: (1) the body in its rest pose, the translation from the torso's size in the image and the
+focal length, then translation and global orientation fitted to the torso and head keypoints, from
+two starts (facing the camera and facing away; the better is kept); (2) everything (pose, shape,
+translation) with the priors, whose weights decrease over a few rounds (from ``anneal``), as SMPLify
+does. See :mod:`smplcore.fit.reprojection` for the objective and :mod:`smplcore.fit.priors` for the
+priors.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from smplcore.errors import ShapeError
+from smplcore.fit.body import FitBody
+from smplcore.fit.camera import Camera
+from smplcore.fit.priors import BENDING, GMMPrior, joint_limits
+from smplcore.fit.reprojection import KeypointMap, Terms, keypoints_3d, levenberg_marquardt, reprojection
+from smplcore.fit.result import FitResult, as_array, params_to_state, single_threaded_blas, state_to_params
+from smplcore.fit.solver import State
+
+TORSO = ("left_shoulder", "right_shoulder", "left_hip", "right_hip", "neck", "mid_hip", "pelvis")
+HEAD = ("nose", "left_eye", "right_eye", "left_ear", "right_ear", "head", "head_top")
+
+
+def keypoint_map(body: FitBody, model: Any, convention: Any, regressor: Any = None) -> KeypointMap:
+    """How the keypoints of ``convention`` are made from ``model``'s points (its output joints by name,
+    midpoints where the convention defines them so, or the rows of a :class:`~smplcore.keypoints.Regressor`)."""
+    from smplcore import keypoints
+
+    try:
+        dst = keypoints.layout(convention, "convention")
+    except (KeyError, ValueError) as exc:
+        raise ValueError(
+            f"convention: unknown keypoint convention {convention!r}; use one of {keypoints.conventions()} "
+            "or a list of point names"
+        ) from exc
+    width = body.num_vertices + body.num_joints
+    if regressor is None:
+        plan = keypoints.plan(model, dst)
+        rows = body.output_rows
+    else:
+        if regressor.num_vertices != body.num_vertices:
+            raise ShapeError(
+                f"regressor: made for {regressor.num_vertices} vertices, the model has {body.num_vertices}"
+            )
+        plan = keypoints.plan(
+            list(regressor.qualified_names()) if hasattr(regressor, "qualified_names") else list(regressor.names), dst
+        )
+        mat = regressor.matrix
+        mat = np.asarray(mat.toarray() if hasattr(mat, "toarray") else mat, np.float64)
+        rows = np.concatenate([mat, np.zeros((len(mat), body.num_joints))], axis=1)
+    full = np.zeros((len(dst), width))
+    first, second = np.where(plan.mask, plan.first, 0), np.where(plan.mask, plan.second, 0)
+    full[plan.mask] = 0.5 * (rows[first[plan.mask]] + rows[second[plan.mask]])
+    available = plan.mask & full.any(axis=1)
+    ids = np.flatnonzero(full.any(axis=0))
+    if len(ids) == 0:
+        raise ValueError(f"convention: none of the points of {dst.label} is a point of this model")
+    return KeypointMap(body.points(ids), full[:, ids], available, dst.names)
+
+
+def _check_keypoints(keypoints: Any, num: int, label: str) -> np.ndarray:
+    kp = as_array(keypoints, "keypoints")
+    if kp.ndim == 2:
+        kp = kp[None]
+    if kp.ndim != 3 or kp.shape[1:] != (num, 3):
+        raise ShapeError(
+            f"keypoints: expected (B, {num}, 3) x, y (pixels), confidence for convention {label}, "
+            f"got {tuple(np.shape(keypoints))}"
+        )
+    return kp
+
+
+def _rotation_of(camera: Camera, facing: np.ndarray) -> np.ndarray:
+    """Axis-angle in the world of a body orientation given in camera coordinates."""
+    from scipy.spatial.transform import Rotation
+
+    cam = Rotation.from_rotvec(facing).as_matrix()
+    return Rotation.from_matrix(camera.rotation.T @ cam).as_rotvec()
+
+
+def _initial_translation(body, kmap, camera, state, targets, weights) -> tuple[np.ndarray, np.ndarray]:
+    """Translations (B, 3) putting the rest body at the depth where its torso (or all keypoints) has
+    the keypoints' size in the image, centred on them; and (B,) metres per pixel there."""
+    names = kmap.names
+    torso = np.array([n in TORSO for n in names]) & kmap.available
+    pts, _ = keypoints_3d(body, kmap, state)
+    transl = np.empty((len(targets), 3))
+    for b in range(len(targets)):
+        use = (weights[b] > 0) & torso
+        if use.sum() < 3:
+            use = weights[b] > 0
+        cam = camera.to_camera(pts[b, use])
+        size3 = np.sqrt(np.mean(np.sum((cam[:, :2] - cam[:, :2].mean(0)) ** 2, axis=1)))
+        uv = targets[b, use] / camera.focal
+        size2 = np.sqrt(np.mean(np.sum((uv - uv.mean(0)) ** 2, axis=1)))
+        depth = size3 / max(size2, 1e-9)
+        centre = (targets[b, use].mean(0) - camera.center) / camera.focal
+        want = np.array([centre[0] * depth, centre[1] * depth, depth])  # camera coords of the centroid
+        have = cam.mean(0)
+        transl[b] = state.transl[b] + camera.rotation.T @ (want - have)
+    depth = (transl @ camera.rotation.T + camera.translation)[:, 2]
+    return transl, np.maximum(depth, 0.1) / camera.focal.mean()
+
+
+def _natural_pose(body: FitBody, block: Any) -> np.ndarray:
+    """(D,) body pose with the arms lowered (0.8 rad) and elbows (0.5) and knees (0.3) bent forward."""
+    names = body.output_joint_names[block.first_joint : block.first_joint + block.num_joints]
+    pose = np.zeros(block.width)
+    for joint, axis, value in (
+        ("left_shoulder", 2, -0.8), ("right_shoulder", 2, 0.8), ("left_elbow", 1, -0.5),
+        ("right_elbow", 1, 0.5), ("left_knee", 0, 0.3), ("right_knee", 0, 0.3),
+    ):  # fmt: skip
+        if joint in names:
+            pose[names.index(joint) * 3 + axis] = value
+    return pose
+
+
+def _terms(body, kmap, camera, targets, weights, scale, sigma, free, shared, **priors) -> Terms:
+    q, k = body.num_pose, body.num_coeffs
+    blocks = {b.name: b for b in body.blocks}
+    bp = blocks["body_pose"]
+    body_cols = np.arange(bp.start, bp.start + bp.width)
+    names = body.output_joint_names[bp.first_joint : bp.first_joint + bp.num_joints]
+    lo, hi = joint_limits(names)
+    bend = [(names.index(n) * 3 + axis, sign) for n, axis, sign in BENDING if n in names]
+    smooth_cols = np.concatenate([np.arange(q), q + k + np.arange(3)])
+    return Terms(
+        kmap=kmap,
+        camera=camera,
+        targets=targets,
+        weights=weights,
+        scale=scale,
+        sigma=sigma,
+        free=free,
+        shared=shared,
+        beta_cols=q + np.flatnonzero(free[q : q + body.num_betas]),
+        body_cols=body_cols,
+        lo=lo.reshape(-1),
+        hi=hi.reshape(-1),
+        bend_index=np.array([i for i, _ in bend], np.int64),
+        bend_sign=np.array([s for _, s in bend]),
+        smooth_cols=smooth_cols,
+        **priors,
+    )
+
+
+def _place(body, kmap, camera, start, given, targets, weights, go_cols, transl_cols, sigma, max_iter, tol):
+    """Stage 1: translation and global orientation fitted to the torso and head keypoints, from the
+    camera-facing and the facing-away starts (the better kept). Returns the state, (B,) metres per
+    pixel at the bodies and the iterations run."""
+    batch = len(targets)
+    q, k = body.num_pose, body.num_coeffs
+    facings = ((np.pi, 0.0, 0.0), (0.0, 0.0, np.pi)) if "global_orient" not in given else (None,)
+    candidates = []
+    for facing in facings:
+        state = start.copy()
+        if facing is not None:
+            state.pose[:, go_cols] = _rotation_of(camera, np.array(facing))
+        transl, scale = _initial_translation(body, kmap, camera, state, targets, weights)
+        if "transl" not in given:
+            state.transl = transl
+        candidates.append((state, scale))
+    rigid = np.array([n in TORSO + HEAD for n in kmap.names])
+    w1 = np.where(((weights > 0) & rigid).sum(1, keepdims=True) >= 3, weights * rigid, weights)
+    free = np.zeros(q + k + 3, bool)
+    free[go_cols] = free[transl_cols] = True
+    none = np.zeros_like(free)
+    both = State(*(np.concatenate([getattr(c[0], f) for c in candidates]) for f in ("pose", "coeffs", "transl")))
+    scale2 = np.concatenate([c[1] for c in candidates])
+    reps = len(candidates)
+    terms = _terms(
+        body, kmap, camera, np.tile(targets, (reps, 1, 1)), np.tile(w1, (reps, 1)), scale2, sigma, free, none
+    )
+    both, cost, _, iterations = levenberg_marquardt(body, terms, both, max_iter=max_iter, tol=tol)
+    pick = np.argmin(cost.reshape(reps, batch), axis=0) * batch + np.arange(batch)
+    state = State(both.pose[pick], both.coeffs[pick], both.transl[pick])
+    scale = scale2[pick]
+    return state, scale, iterations
+
+
+def _where(mask: np.ndarray, a: State, b: State) -> State:
+    """Per body, ``a`` where ``mask`` else ``b``."""
+    return State(*(np.where(mask[:, None], getattr(a, f), getattr(b, f)) for f in ("pose", "coeffs", "transl")))
+
+
+@single_threaded_blas
+def fit_keypoints(
+    model: Any,
+    keypoints: Any,
+    convention: Any = "coco17",
+    camera: Camera | None = None,
+    *,
+    regressor: Any = None,
+    betas: Any = None,
+    fit_betas: bool = True,
+    share_betas: bool = False,
+    init: dict[str, Any] | None = None,
+    min_confidence: float = 0.1,
+    min_points: int = 6,
+    sigma: float = 100.0,
+    shape_prior: float = 1e-3,
+    pose_prior: float = 1e-5,
+    joint_limits: float = 100.0,
+    bending: float = 1.0,
+    gmm: str | GMMPrior | None = None,
+    gmm_weight: float = 1e-4,
+    smoothness: float = 0.0,
+    anneal: tuple[float, ...] = (3.0, 1.0),
+    multi_start: bool = True,
+    max_iter: int = 25,
+    tol: float = 1e-4,
+) -> FitResult:
+    """Parameters of ``model`` whose keypoints, seen by ``camera``, match 2D detections.
+
+    Parameters
+    ----------
+    model : a torch model of :func:`smplcore.create` or a :class:`smplcore.BodyModel` with a body
+        (SMPL, SMPL+H, SMPL-X or the open model).
+    keypoints : (B, K, 3) x, y (pixels), confidence; B independent bodies (people, frames).
+    convention : the keypoints' convention (``"coco17"``, ``"openpose25"``, ... see
+        :func:`smplcore.keypoints.conventions`) or a list of point names.
+    camera : a :class:`Camera` (OpenCV convention; ``Camera.from_image_size`` when only the image size
+        is known). The body's ``transl`` is fitted in the camera's world frame.
+    regressor : a :class:`smplcore.keypoints.Regressor` giving the keypoints from the vertices instead of
+        the model's joints (e.g. :func:`smplcore.keypoints.open_model_regressor`).
+    betas, fit_betas, share_betas, init : as in :func:`fit_vertices`; ``share_betas`` for one person
+        over a sequence.
+    min_confidence : keypoints below it are ignored; the others are weighted by their confidence.
+    min_points : keypoints each body needs at least.
+    sigma : Geman–McClure scale (pixels).
+    shape_prior, pose_prior : weights of Σ β² and Σ θ² (body pose; m² per unit).
+    joint_limits, bending : weights (m² per rad²) of the anatomical joint limits and of the elbow/knee
+        bending prior (:mod:`smplcore.fit.priors`).
+    gmm, gmm_weight : SMPLify's ``gmm_08.pkl`` (path or :class:`GMMPrior`) and its weight.
+    smoothness : weight of Σ_t |x_t − x_{t−1}|² over pose and translation of consecutive bodies.
+    anneal : multipliers of the priors' weights in the rounds of stage 2.
+    multi_start : run stage 2 also from a natural pose (arms lowered, elbows and knees a little bent)
+        and keep, per body, the fit with the lower cost (about twice the time).
+    max_iter, tol : Levenberg–Marquardt iterations per round and relative decrease to stop at.
+
+    Returns
+    -------
+    FitResult with ``params``, ``reprojection_error`` (B,) mean pixels over the keypoints used, and
+    ``converged`` (B,).
+    """
+    if camera is None:
+        raise ValueError(
+            "camera: fit_keypoints needs the camera, e.g. fit.Camera(focal=f, center=(cx, cy)) or "
+            "fit.Camera.from_image_size(width, height)"
+        )
+    if not isinstance(camera, Camera):
+        raise TypeError(f"camera: expected a smplcore.fit.Camera, got {type(camera).__name__}")
+    body = FitBody.from_model(model)
+    if not {"global_orient", "body_pose"} <= {b.name for b in body.blocks}:
+        raise ValueError(f"model: fit_keypoints fits bodies; a {body.model_type} model has no body_pose")
+    kmap = keypoint_map(body, model, convention, regressor)
+    kp = _check_keypoints(keypoints, len(kmap.names), str(convention))
+    batch = len(kp)
+    targets, conf = kp[..., :2], kp[..., 2]
+    weights = np.where((conf >= min_confidence) & kmap.available, conf, 0.0)
+    counts = (weights > 0).sum(1)
+    if np.any(counts < min_points):
+        bad = np.flatnonzero(counts < min_points)
+        raise ValueError(
+            f"keypoints: bodies {bad.tolist()[:10]} have {counts[bad].tolist()[:10]} keypoints with confidence "
+            f">= {min_confidence} that the model has (need min_points={min_points}); drop them or lower min_points"
+        )
+    if isinstance(gmm, (str, bytes)) or hasattr(gmm, "__fspath__"):
+        gmm = GMMPrior.load(gmm)
+    q, k = body.num_pose, body.num_coeffs
+    blocks = {b.name: b for b in body.blocks}
+    if gmm is not None:
+        gmm = gmm.marginal(blocks["body_pose"].width)
+    start = params_to_state(body, {**(init or {}), **({} if betas is None else {"betas": betas})}, batch)
+    go = blocks["global_orient"]
+    go_cols = np.arange(go.start, go.start + 3)
+    transl_cols = q + k + np.arange(3)
+    state, scale, iterations = _place(
+        body, kmap, camera, start, init or {}, targets, weights, go_cols, transl_cols, sigma, max_iter, tol
+    )
+    # stage 2: everything, priors annealed, from the rest pose and from a natural pose (the better is kept)
+    bp = blocks["body_pose"]
+    free = np.zeros(q + k + 3, bool)
+    free[go_cols] = free[transl_cols] = True
+    free[bp.start : bp.start + bp.width] = True
+    if fit_betas:
+        free[q : q + body.num_betas] = True
+    shared = np.zeros_like(free)
+    if share_betas and fit_betas:
+        shared[q : q + body.num_betas] = True
+    priors = dict(shape_prior=shape_prior, pose_prior=pose_prior, gmm_prior=gmm_weight)
+    starts = [state]
+    if multi_start and "body_pose" not in (init or {}):
+        other = state.copy()
+        other.pose[:, bp.start : bp.start + bp.width] = _natural_pose(body, bp)
+        starts.append(other)
+    best = None
+    for first in starts:
+        state, more = first, 0
+        for factor in anneal:
+            terms = _terms(
+                body, kmap, camera, targets, weights, scale, sigma, free, shared,
+                **{key: value * factor for key, value in priors.items()},
+                limit_prior=joint_limits, bend_prior=bending, gmm=gmm, smooth=smoothness,
+            )  # fmt: skip
+            state, cost, converged, used = levenberg_marquardt(body, terms, state, max_iter=max_iter, tol=tol)
+            more += used
+        iterations += more
+        if best is None:
+            best = (state, cost, converged)
+            continue
+        coupled = bool(shared.any() or smoothness) and batch > 1
+        better = np.full(batch, cost.sum() < best[1].sum()) if coupled else cost < best[1]
+        best = (_where(better, state, best[0]), np.where(better, cost, best[1]), np.where(better, converged, best[2]))
+    state, _, converged = best
+    dist = reprojection(body, terms, state)
+    used = weights > 0
+    error = (dist * used).sum(1) / used.sum(1)
+    return FitResult(
+        params=state_to_params(body, model, state),
+        reprojection_error=error,
+        converged=converged,
+        iterations=iterations,
+    )

@@ -1,0 +1,290 @@
+"""The 2D keypoint objective and its Levenberg–Marquardt solver.
+
+Keypoints are linear combinations of the fitting points of :class:`~smplcore.fit.body.FitBody`
+(skeleton joints, vertex joints, midpoints, regressor rows), projected by a pinhole
+:class:`~smplcore.fit.camera.Camera`. The data term is SMPLify's robust Geman–McClure reprojection
+cost ``Σ_k c_k ρ(|π(x_k) − y_k|²)``, ``ρ(e²) = σ² e² / (σ² + e²)``, scaled by ``(z / f)²`` (pixels at
+the body's depth become metres, so the priors' weights do not depend on the image size). It is
+minimised by Gauss–Newton with iteratively reweighted residuals (weights ``c ρ'(e²)``, a majoriser of
+the robust cost) and Levenberg damping, on the exact Jacobian of the model's points. The priors of
+:mod:`smplcore.fit.priors` enter as residuals. Bodies are independent (each with its own damping)
+unless shape is shared or a temporal smoothness couples consecutive bodies; then one sparse system is
+solved for the whole batch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from smplcore.fit.body import FitBody, Points, pose_points
+from smplcore.fit.camera import Camera
+from smplcore.fit.priors import GMMPrior, bending_residuals, limit_residuals
+from smplcore.fit.solver import State
+
+
+@dataclass(frozen=True)
+class KeypointMap:
+    """K keypoints as combinations (K, n) of the fitting points ``points``; ``available`` (K,)."""
+
+    points: Points
+    combo: np.ndarray
+    available: np.ndarray
+    names: tuple[str, ...]
+
+
+@dataclass
+class Terms:
+    """What is minimised for a batch of B bodies (see the module docstring).
+
+    ``free`` (P,) marks the fitted columns of the flat parameters [pose Q, coeffs K, transl 3];
+    ``shared`` (P,) those shared by the batch; ``body_cols`` the columns of ``body_pose`` (D,) with
+    bounds ``lo``, ``hi`` (D,); ``bend`` (index into body_cols, sign) pairs; ``smooth`` the weight of
+    Σ_t |x_t − x_{t−1}|² over pose and translation columns.
+    """
+
+    kmap: KeypointMap
+    camera: Camera
+    targets: np.ndarray  # (B, K, 2) pixels
+    weights: np.ndarray  # (B, K) confidences (0: unused)
+    scale: np.ndarray  # (B,) metres per pixel at the body
+    sigma: float
+    free: np.ndarray
+    shared: np.ndarray
+    beta_cols: np.ndarray
+    body_cols: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    bend_index: np.ndarray
+    bend_sign: np.ndarray
+    shape_prior: float = 0.0
+    pose_prior: float = 0.0
+    limit_prior: float = 0.0
+    bend_prior: float = 0.0
+    gmm: GMMPrior | None = None
+    gmm_prior: float = 0.0
+    smooth: float = 0.0
+    smooth_cols: np.ndarray | None = None
+
+
+def flat(state: State) -> np.ndarray:
+    return np.concatenate([state.pose, state.coeffs, state.transl], axis=1)
+
+
+def unflat(body: FitBody, x: np.ndarray) -> State:
+    q, k = body.num_pose, body.num_coeffs
+    return State(x[:, :q].copy(), x[:, q : q + k].copy(), x[:, q + k :].copy())
+
+
+def keypoints_3d(body: FitBody, kmap: KeypointMap, state: State, jacobian: bool = False):
+    """(B, K, 3) keypoints of the bodies and, with ``jacobian``, (B, K, 3, P) over the flat parameters."""
+    lin = pose_points(body, kmap.points, body.full_pose(state.pose), state.coeffs, state.transl, jacobian)
+    pts = kmap.combo @ lin.points
+    if not jacobian:
+        return pts, None
+    nj3 = 3 * body.num_joints
+    jac = lin.jacobian
+    if body.pose_map is not None:
+        jac = np.concatenate([jac[..., :nj3] @ body.pose_map.T, jac[..., nj3:]], axis=-1)
+    batch, n, _, width = jac.shape
+    return pts, (kmap.combo @ jac.reshape(batch, n, 3 * width)).reshape(batch, -1, 3, width)
+
+
+def reprojection(body: FitBody, terms: Terms, state: State) -> np.ndarray:
+    """(B, K) pixel distances of the projected keypoints from their targets."""
+    pts, _ = keypoints_3d(body, terms.kmap, state)
+    return np.linalg.norm(terms.camera.project(pts) - terms.targets, axis=-1)
+
+
+def _prior_parts(terms: Terms, x: np.ndarray):
+    """Residual blocks of the priors: a list of (weight, residual (B, m), Jacobian (B, m, P) or
+    diagonal (B, m) on columns ``cols``), plus the GMM's constant cost (B,)."""
+    parts = []
+    const = np.zeros(len(x))
+    if terms.shape_prior and len(terms.beta_cols):
+        parts.append(
+            (terms.shape_prior, x[:, terms.beta_cols], np.ones((len(x), len(terms.beta_cols))), terms.beta_cols)
+        )
+    theta = x[:, terms.body_cols]
+    ones = np.ones_like(theta)
+    if terms.pose_prior:
+        parts.append((terms.pose_prior, theta, ones, terms.body_cols))
+    if terms.limit_prior:
+        res, diag = limit_residuals(theta, terms.lo, terms.hi)
+        parts.append((terms.limit_prior, res, diag, terms.body_cols))
+    if terms.bend_prior and len(terms.bend_index):
+        res, diag = bending_residuals(theta, terms.bend_index, terms.bend_sign)
+        parts.append((terms.bend_prior, res, diag, terms.body_cols[terms.bend_index]))
+    if terms.gmm is not None and terms.gmm_prior:
+        best, res, jac = terms.gmm.residuals(theta)
+        parts.append((terms.gmm_prior, res, jac, terms.body_cols))
+        const = 2 * terms.gmm_prior * terms.gmm.penalty[best]
+    return parts, const
+
+
+def smooth_cost(terms: Terms, x: np.ndarray) -> np.ndarray:
+    """(B,) temporal smoothness cost, each difference charged to the later body."""
+    cost = np.zeros(len(x))
+    if terms.smooth and len(x) > 1:
+        d = np.diff(x[:, terms.smooth_cols], axis=0)
+        cost[1:] = terms.smooth * np.sum(d * d, axis=1)
+    return cost
+
+
+def evaluate(body: FitBody, terms: Terms, x: np.ndarray, system: bool = True):
+    """Cost (B,) at flat parameters ``x`` (B, P) and, with ``system``, the Gauss–Newton matrices
+    H (B, F, F) and gradients g (B, F) over the free columns F (smoothness excluded)."""
+    state = unflat(body, x)
+    pts, jac = keypoints_3d(body, terms.kmap, state, system)
+    s2 = (terms.scale**2)[:, None]
+    if system:
+        uv, d_uv = terms.camera.project_jacobian(pts)
+    else:
+        uv = terms.camera.project_jacobian(pts)[0]
+    e = uv - terms.targets
+    e2 = np.sum(e * e, axis=-1)
+    sig2 = terms.sigma**2
+    cost = np.sum(terms.weights * sig2 * e2 / (sig2 + e2) * s2, axis=1)
+    parts, const = _prior_parts(terms, x)
+    for weight, res, _, _ in parts:
+        cost = cost + weight * np.sum(res * res, axis=1)
+    cost = cost + const + smooth_cost(terms, x)
+    if not system:
+        return cost, None, None
+    cols = np.flatnonzero(terms.free)
+    irls = terms.weights * sig2 * sig2 / (sig2 + e2) ** 2 * s2  # (B, K)
+    j2 = d_uv @ jac[..., cols]  # (B, K, 2, F)
+    jw = j2 * np.sqrt(irls)[:, :, None, None]
+    batch, num_k = e.shape[:2]
+    jw = jw.reshape(batch, 2 * num_k, len(cols))
+    rw = (e * np.sqrt(irls)[..., None]).reshape(batch, 2 * num_k)
+    jt = np.swapaxes(jw, 1, 2)
+    hess = jt @ jw
+    grad = (jt @ rw[..., None])[..., 0]
+    where = np.full(x.shape[1], -1)
+    where[cols] = np.arange(len(cols))
+    for weight, res, pj, pcols in parts:
+        idx = where[pcols]
+        keep = idx >= 0
+        if not keep.any():
+            continue
+        idx = idx[keep]
+        if pj.ndim == 2:  # diagonal Jacobian
+            d = pj[:, keep]
+            hess[:, idx, idx] += weight * d * d
+            grad[:, idx] += weight * d * res[:, keep]
+        else:
+            m = pj[:, :, keep]
+            mt = np.swapaxes(m, 1, 2)
+            hess[np.ix_(np.arange(batch), idx, idx)] += weight * (mt @ m)
+            grad[:, idx] += weight * (mt @ res[..., None])[..., 0]
+    return cost, hess, grad
+
+
+DAMPING_FLOOR = 0.1
+
+
+def _damped(hess: np.ndarray, damping: np.ndarray) -> np.ndarray:
+    diag = np.diagonal(hess, axis1=-2, axis2=-1)
+    # Marquardt's scaling, floored at a fraction of the mean curvature: directions only the priors see
+    # (twists) would otherwise take huge steps
+    floor = DAMPING_FLOOR * np.maximum(diag.mean(axis=-1, keepdims=True), 1e-12)
+    return hess + (damping[..., None] * np.maximum(diag, floor))[..., None] * np.eye(hess.shape[-1])
+
+
+def _coupled_step(terms: Terms, x: np.ndarray, hess: np.ndarray, grad: np.ndarray, damping: float) -> np.ndarray:
+    """One damped step of the whole batch (shared columns and smoothness couple the bodies)."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import spsolve
+
+    batch = len(x)
+    cols = np.flatnonzero(terms.free)
+    shared = terms.shared[cols]
+    local = np.flatnonzero(~shared)
+    index = np.empty((batch, len(cols)), np.int64)
+    index[:, local] = np.arange(batch)[:, None] * len(local) + np.arange(len(local))
+    index[:, shared] = batch * len(local) + np.arange(int(shared.sum()))
+    size = batch * len(local) + int(shared.sum())
+    h = hess.copy()
+    g = grad.copy()
+    rows = [np.repeat(index[:, :, None], len(cols), 2).ravel()]
+    colsi = [np.repeat(index[:, None, :], len(cols), 1).ravel()]
+    data = [h.ravel()]
+    if terms.smooth and batch > 1:
+        where = np.full(x.shape[1], -1)
+        where[cols] = np.arange(len(cols))
+        sc = where[terms.smooth_cols]
+        sc = sc[sc >= 0]
+        d = terms.smooth * np.diff(x[:, cols[sc]], axis=0)  # (B-1, S)
+        g[1:, sc] += d
+        g[:-1, sc] -= d
+        a, b = index[1:, sc].ravel(), index[:-1, sc].ravel()
+        s = np.full(a.shape, terms.smooth)
+        rows += [a, b, a, b]
+        colsi += [a, b, b, a]
+        data += [s, s, -s, -s]
+    mat = sp.coo_matrix((np.concatenate(data), (np.concatenate(rows), np.concatenate(colsi))), (size, size)).tocsc()
+    diag = mat.diagonal()
+    mat = mat + sp.diags(damping * diag + 1e-9 * max(diag.max(), 1e-12))
+    rhs = np.zeros(size)
+    np.add.at(rhs, index.ravel(), g.ravel())
+    sol = -spsolve(mat, rhs)
+    return sol[index]
+
+
+def levenberg_marquardt(
+    body: FitBody, terms: Terms, state: State, *, max_iter: int = 20, tol: float = 1e-6, step_tol: float = 1e-6
+) -> tuple[State, np.ndarray, np.ndarray, int]:
+    """Minimise ``terms`` over the free columns from ``state`` (Levenberg–Marquardt with Nielsen's
+    damping update from the ratio of the actual to the predicted decrease).
+
+    Returns the state, (B,) costs, (B,) converged flags (relative cost decrease below ``tol`` or a step
+    below ``step_tol``) and the iterations run.
+    """
+    x = flat(state)
+    batch = len(x)
+    cols = np.flatnonzero(terms.free)
+    coupled = batch > 1 and (bool(terms.shared[cols].any()) or bool(terms.smooth))
+    damping = np.full(batch, 1e-2)
+    growth = np.full(batch, 2.0)
+    converged = np.zeros(batch, bool)
+    cost, hess, grad = evaluate(body, terms, x)
+    iterations = 0
+    while iterations < max_iter:
+        iterations += 1
+        active = ~converged
+        if coupled:
+            # (the predicted decrease below leaves out the smoothness terms: it only steers the damping)
+            step = _coupled_step(terms, x, hess, grad, float(damping[0]))
+        else:
+            step = -np.linalg.solve(_damped(hess, damping), grad[..., None])[..., 0]
+        step = np.where(active[:, None], step, 0.0)
+        trial = x.copy()
+        trial[:, cols] += step
+        new_cost = evaluate(body, terms, trial, system=False)[0]
+        predicted = -(2 * np.sum(grad * step, axis=1) + np.sum(step * (hess @ step[..., None])[..., 0], axis=1))
+        if coupled:
+            gain = np.full(batch, (cost.sum() - new_cost.sum()) / max(abs(predicted.sum()), 1e-300))
+            better = np.full(batch, new_cost.sum() <= cost.sum()) & active
+        else:
+            gain = (cost - new_cost) / np.maximum(np.abs(predicted), 1e-300)
+            better = (new_cost <= cost) & active
+        decrease = (cost - new_cost) / np.maximum(cost, 1e-300)
+        if coupled:
+            decrease = np.full(batch, (cost.sum() - new_cost.sum()) / max(cost.sum(), 1e-300))
+        small = np.max(np.abs(step), axis=1) < step_tol
+        x = np.where(better[:, None], trial, x)
+        factor = np.maximum(1 / 3, 1 - (2 * np.clip(gain, 0, 1) - 1) ** 3)
+        damping = np.where(better, np.maximum(damping * factor, 1e-9), np.where(active, damping * growth, damping))
+        growth = np.where(better, 2.0, np.where(active, growth * 2, growth))
+        done = (better & ((decrease < tol) | small)) | (active & (damping > 1e8))
+        converged |= done
+        if converged.all():
+            break
+        if better.any():
+            cost_new, hess_new, grad_new = evaluate(body, terms, x)
+            cost = np.where(better, cost_new, cost)
+            hess = np.where(better[:, None, None], hess_new, hess)
+            grad = np.where(better[:, None], grad_new, grad)
+    return unflat(body, x), cost, converged, iterations
