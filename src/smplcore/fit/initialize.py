@@ -12,8 +12,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from smplcore.engine import rodrigues
+from smplcore.fit import dense
 from smplcore.fit.body import FitBody, Points
-from smplcore.fit.solver import Objective, State, _step, normal_equations
+from smplcore.fit.solver import Objective, State, _step
 
 
 def kabsch(source: np.ndarray, target: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -97,22 +98,34 @@ def initialize(body: FitBody, obj: Objective, state: State, *, iterations: int =
 
 def shape_and_translation(body: FitBody, obj: Objective, state: State) -> State:
     """The least-squares shape coefficients and translation for the state's rotations (exact: the posed
-    points are affine in them), by one Gauss–Newton step on those columns."""
-    if not (obj.free_coeffs.any() or obj.fit_transl):
+    points are affine in them), from one linear solve on those columns (shape prior included)."""
+    free = np.flatnonzero(obj.free_coeffs)
+    if not (len(free) or obj.fit_transl):
         return state
     state = state.copy()
-    batch, q = len(state.pose), body.num_pose
-    lin_obj = Objective(**{**obj.__dict__, "pose_prior": None, "pose_mean": None})
-    hess, grad, _ = normal_equations(body, lin_obj, state)
-    keep = np.arange(q, hess.shape[1])
-    hess, grad = hess[:, keep][:, :, keep], grad[:, keep]
-    cols = np.flatnonzero(obj.free_coeffs)
-    shared = np.zeros(len(keep), bool)
-    shared[: len(cols)] = obj.shared[cols]
+    batch = len(state.pose)
+    arrays = dense.dense_points(body, obj.points)
+    posed = dense.pose(body, arrays, body.full_pose(state.pose), state.coeffs, state.transl)
+    n = arrays.count
+    blocks = [np.moveaxis(dense.coefficient_jacobian(body, obj.points, arrays, posed)[:, :, free], -1, 0)]
+    if obj.fit_transl:
+        blocks.append(np.broadcast_to(np.eye(3), (batch, n, 3, 3)))
+    jac = np.concatenate(blocks, axis=-1).reshape(batch, 3 * n, -1)  # (B, 3 n, K' + 3)
+    sw = np.sqrt(np.repeat(obj.weights, 3, axis=1))[..., None]
+    res = np.moveaxis(posed.points - np.moveaxis(obj.targets, 0, -1), -1, 0).reshape(batch, 3 * n, 1)
+    jw = jac * sw
+    hess = np.matmul(np.swapaxes(jw, 1, 2), jw)
+    grad = np.matmul(np.swapaxes(jw, 1, 2), res * sw)[..., 0]
+    if obj.shape_prior:
+        k = len(free)
+        hess[:, np.arange(k), np.arange(k)] += obj.shape_prior
+        grad[:, :k] += obj.shape_prior * state.coeffs[:, free]
+    shared = np.zeros(hess.shape[1], bool)
+    shared[: len(free)] = obj.shared[free]
     if batch == 1:
         shared[:] = False
     step = _step(hess, grad, np.full(batch, 1e-9), shared)
-    state.coeffs[:, cols] += step[:, : len(cols)]
+    state.coeffs[:, free] += step[:, : len(free)]
     if obj.fit_transl:
-        state.transl += step[:, len(cols) :]
+        state.transl += step[:, len(free) :]
     return state

@@ -15,9 +15,10 @@ import numpy as np
 
 from smplcore.errors import ShapeError
 from smplcore.fit.body import FitBody, pose_points
+from smplcore.fit.gauss_newton import refine
 from smplcore.fit.initialize import kabsch, rotation_log, shape_and_translation
 from smplcore.fit.result import FitResult, as_array, params_to_state, single_threaded_blas, state_to_params
-from smplcore.fit.solver import Objective, State, levenberg_marquardt
+from smplcore.fit.solver import Objective, State
 from smplcore.fit.vertices import _weights, coefficient_masks
 
 
@@ -183,12 +184,13 @@ def fit_joints(
         for _ in range(2):
             state = bone_rotations(body, ids, jt, state)
             state = shape_and_translation(body, obj, state)
-    state, _, converged, iterations = levenberg_marquardt(body, obj, state, max_iter=max_iter, tol=tol)
+    dtype = np.float64  # 22 points: precision is free
+    state, _, _, converged, iterations = refine(body, obj, state, dtype=dtype, max_iter=max_iter, tol=tol)
     if smoothness and batch > 1:
         for _ in range(smoothing_rounds):
             centre, weight = _neighbour_prior(state.pose, smoothness, prior)
             obj_s = Objective(body.points(ids), jt, weights, free, shared, fit_transl, shape_prior, weight, centre)
-            state, _, converged, more = levenberg_marquardt(body, obj_s, state, max_iter=5, tol=tol)
+            state, _, _, converged, more = refine(body, obj_s, state, dtype=dtype, max_iter=5, tol=tol)
             iterations += more
     posed = pose_points(body, body.points(ids), body.full_pose(state.pose), state.coeffs, state.transl).points
     dist = np.linalg.norm(posed - jt, axis=-1)
