@@ -34,7 +34,7 @@ def test_dense_products_match_pose_points(fake_models, model_type):
     expected = np.einsum("bncp,ncb->bp", lin.jacobian, residual)
     scale = np.abs(expected).max()
     np.testing.assert_allclose(dense.gradient(body, arrays, posed, residual), expected, atol=1e-12 * scale)
-    jac = dense.jacobian(body, arrays, posed)
+    jac = dense.jacobian(body, pts, posed)
     ref = lin.jacobian.reshape(jac.shape)
     np.testing.assert_allclose(jac, ref, atol=1e-12 * np.abs(ref).max())
 

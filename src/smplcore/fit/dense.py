@@ -176,48 +176,57 @@ def coefficient_jacobian(body: FitBody, pts: Points | None, arrays: DensePoints,
     return dirs + mixed
 
 
-def _jacobian_constants(body: FitBody, arrays: DensePoints) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """Per point set: W_ij [j below k] (n, J, J), its sum over j (n, J), pose correctives (J - 1, 3 n, 9)."""
-    key = ("jac", id(arrays))
+def _jacobian_constants(body: FitBody, pts: Points) -> tuple:
+    """Per point set: ancestors (n, a) padded with the root, their weights below (n, a, m) and sums (n, a),
+    the pose correctives (n, 3, 9 (J - 1)). A padded slot repeats the root's, so that scattering the
+    blocks writes the same value twice instead of a zero over a real one."""
+    key = ("jac", pts.ids.tobytes())
     cached = body._cache.get(key)
-    if cached is not None and cached[0] is arrays:
-        return cached[1]
-    dense_w = arrays.weights.toarray().astype(np.float64)
-    below = dense_w[:, None, :] * arrays.subtree[None]  # (n, K, J)
-    posedirs = None
-    if arrays.has_pose:
-        k, n = arrays.num_coeffs, arrays.count
-        posedirs = np.ascontiguousarray(arrays.basis[k:].astype(np.float64).reshape(-1, 9, 3 * n).transpose(0, 2, 1))
-    out = (np.ascontiguousarray(below), below.sum(-1), posedirs)
+    if cached is not None:
+        return cached
+    valid = pts.ancestors < body.num_joints
+    ancestors = np.where(valid, pts.ancestors, pts.ancestors[:, :1])
+    below = np.where(valid[..., None], pts.below, pts.below[:, :1])
+    posedirs = None if pts.posedirs is None else pts.posedirs.reshape(len(pts.ids), 3, -1)
+    out = (ancestors, np.ascontiguousarray(below), below.sum(-1), posedirs)
     if len(body._cache) < 32:
-        body._cache[key] = (arrays, out)
+        body._cache[key] = out
     return out
 
 
-def jacobian(body: FitBody, arrays: DensePoints, posed: Posed) -> np.ndarray:
-    """(B, 3 n, 3 J + K + 3) exact Jacobian of the posed points (float64), the one of
-    :func:`smplcore.fit.body.pose_points`, built by batched products in the batch-last layout."""
+def jacobian(body: FitBody, pts: Points, posed: Posed) -> np.ndarray:
+    """(B, 3 n, 3 J + K + 3) exact Jacobian of the posed points ``pts`` (float64), equal to
+    :func:`smplcore.fit.body.pose_points`' — built from the ancestors of each point only."""
     batch, num_joints = posed.theta.shape[:2]
-    n, k = arrays.count, arrays.num_coeffs
-    below, below_sum, posedirs = _jacobian_constants(body, arrays)
-    world = np.moveaxis(posed.world, 0, -1)  # (J, 3, 3, B)
-    rest = posed.rest.astype(np.float64)
-    moved = np.einsum("jcdb,ndb->njcb", world, rest) + np.moveaxis(posed.shift, 0, -1)[None]  # x_ij (n, J, 3, B)
-    u = (below @ moved.reshape(n, num_joints, -1)).reshape(n, num_joints, 3, batch)
-    u -= below_sum[:, :, None, None] * np.moveaxis(posed.pos, 0, -1)[None]
-    local = np.moveaxis(posed.world @ right_jacobian(posed.theta), 0, -1)  # (J, 3, 3, B): columns a
-    u0, u1, u2 = (u[:, :, c, None] for c in range(3))  # (n, J, 1, B)
-    l0, l1, l2 = local[:, 0], local[:, 1], local[:, 2]  # (J, 3, B)
-    rot = np.stack([u2 * l1 - u1 * l2, u0 * l2 - u2 * l0, u1 * l0 - u0 * l1], axis=1)  # (n, 3, J, 3, B)
+    n, k = len(pts.ids), pts.shape.shape[-1]
+    ancestors, below, below_sum, posedirs = _jacobian_constants(body, pts)
+    rest = np.moveaxis(posed.rest, -1, 0).astype(np.float64)  # (B, n, 3)
+    moved = posed.world[:, pts.joints] @ rest[:, :, None, :, None]  # (B, n, m, 3, 1)
+    moved = moved[..., 0] + posed.shift[:, pts.joints]
+    u = np.einsum("nam,bnmc->bnac", below, moved) - below_sum[None, :, :, None] * posed.pos[:, ancestors]
+    local = (posed.world @ right_jacobian(posed.theta))[:, ancestors]  # (B, n, a, 3 c, 3 col)
+    u0, u1, u2 = u[..., 0, None], u[..., 1, None], u[..., 2, None]
+    l0, l1, l2 = local[..., 0, :], local[..., 1, :], local[..., 2, :]  # rows c of the columns col
+    blocks = np.stack([l1 * u2 - l2 * u1, l2 * u0 - l0 * u2, l0 * u1 - l1 * u0], axis=-2)  # (B, n, a, c, col)
+    width = 3 * num_joints + k + 3
+    jac = np.zeros((batch, n, 3, width))
+    # flat positions of the blocks in jac: body b, point i, row c, column 3 ancestor + col
+    offsets = (np.arange(n)[:, None, None, None] * 3 * width + np.arange(3)[None, None, :, None] * width) + (
+        3 * ancestors[:, :, None, None] + np.arange(3)[None, None, None, :]
+    )  # (n, a, 3, 3)
+    flat = (np.arange(batch)[:, None] * (n * 3 * width) + offsets.reshape(1, -1)).reshape(-1)
+    jac.reshape(-1)[flat] = blocks.reshape(-1)
+    rot = jac[..., : 3 * num_joints].reshape(batch, n, 3, num_joints, 3)
+    blend = np.moveaxis(posed.blend, -1, 0).astype(np.float64)  # (B, n, 3, 3)
     if posedirs is not None:
         jr = right_jacobian(posed.theta[:, 1:])
         dvec = (posed.rot[:, 1:, None] @ skew(np.swapaxes(jr, -1, -2))).reshape(batch, num_joints - 1, 3, 9)
-        dvec = np.ascontiguousarray(np.moveaxis(dvec, 0, -1).transpose(0, 2, 1, 3)).reshape(num_joints - 1, 9, -1)
-        rest_d = (posedirs @ dvec).reshape(num_joints - 1, n, 3, 3, batch)  # d v̄_i,d / d θ_k,a
-        rot[:, :, 1:] += np.einsum("ncdb,kndab->nckab", posed.blend.astype(np.float64), rest_d)
-    coeff = coefficient_jacobian(body, None, arrays, posed).astype(np.float64)  # (n, 3, K, B)
-    jac = np.empty((batch, n, 3, 3 * num_joints + k + 3))
-    jac[..., : 3 * num_joints] = np.moveaxis(rot.reshape(n, 3, 3 * num_joints, batch), -1, 0)
-    jac[..., 3 * num_joints : 3 * num_joints + k] = np.moveaxis(coeff, -1, 0)
+        mixed = (blend @ posedirs).reshape(batch, n * 3, num_joints - 1, 9).transpose(0, 2, 1, 3)
+        corr = mixed @ np.swapaxes(dvec, -1, -2)  # (B, J - 1, 3 n, 3 a)
+        rot[:, :, :, 1:] += np.moveaxis(corr.reshape(batch, num_joints - 1, n, 3, 3), 1, 3)
+    totals = shape_steps(body, posed.world)  # (B, J, 3, K)
+    jac[..., 3 * num_joints : 3 * num_joints + k] = blend @ pts.shape + np.einsum(
+        "nm,bnmck->bnck", pts.weights, totals[:, pts.joints]
+    )
     jac[..., -3:] = np.eye(3)
     return jac.reshape(batch, 3 * n, -1)

@@ -21,7 +21,6 @@ from smplcore.fit.solver import (
     _columns,
     _flat,
     _prior_cost,
-    _prior_diagonal,
     _step,
     _unflat,
 )
@@ -40,8 +39,18 @@ class _Problem:
         self.harrays = dense.dense_points(body, self.hobj.points, np.float64)
         self.targets = np.ascontiguousarray(np.moveaxis(obj.targets, 0, -1), dtype=dtype)  # (n, 3, B)
         self.weights = np.ascontiguousarray(obj.weights.T, dtype=dtype)  # (n, B)
-        self.cols = _columns(body, obj)
-        self.transform = _column_map(body, self.cols)
+        cols = _columns(body, obj)
+        q, nj = body.num_pose, body.num_joints
+        self.select = None  # the Jacobian's columns are the parameters' (axis-angle pose): pick, not multiply
+        if body.pose_map is None:
+            # joints that move no point (a wrist with 22 joint targets) are left as they are: their only
+            # term is the pose prior, whose optimum is its centre, where the initialiser leaves them
+            moving = np.zeros(nj + 1, bool)
+            moving[obj.points.ancestors] = True
+            cols = cols[(cols >= q) | moving[np.minimum(cols // 3, nj)]]
+            self.select = None if len(cols) == q + body.num_coeffs + 3 else cols
+        self.cols = cols
+        self.transform = None if body.pose_map is None else _column_map(body, cols)
         self.ratio = obj.weights.sum(1) / np.maximum(self.hobj.weights.sum(1), 1e-300)
 
     def evaluate(self, state: State, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -51,12 +60,12 @@ class _Problem:
         diff = posed.points - self.targets[..., rows]
         w = self.weights[:, rows]
         cost = np.einsum("nb,ncb,ncb->b", w, diff, diff, dtype=np.float64)
-        grad = dense.gradient(body, self.arrays, posed, diff * w[:, None]) @ self.transform
+        grad = self._columns(dense.gradient(body, self.arrays, posed, diff * w[:, None]))
         x = _flat(state)
         if obj.pose_mean is not None:
             x[:, : body.num_pose] -= obj.pose_mean[rows]
         sub = self._sub(obj, rows)
-        grad = grad + _prior_diagonal(sub, self.cols, body.num_pose, body.num_coeffs, len(rows)) * x[:, self.cols]
+        grad = grad + self._prior(rows) * x[:, self.cols]
         dist = np.sqrt(np.einsum("ncb,ncb->bn", diff, diff, dtype=np.float64))
         return cost + _prior_cost(sub, state), grad, dist
 
@@ -72,12 +81,28 @@ class _Problem:
         """(b, P, P) Gauss–Newton matrix of the subset, scaled to the whole set, plus the priors' diagonal."""
         body, hobj = self.body, self.hobj
         posed = dense.pose(body, self.harrays, body.full_pose(state.pose), state.coeffs, state.transl)
-        b = len(rows)
-        jac = dense.jacobian(body, self.harrays, posed) @ self.transform
+        jac = self._columns(dense.jacobian(body, hobj.points, posed))
         jac *= np.sqrt(np.repeat(hobj.weights[rows], 3, axis=1))[..., None]
         hess = np.matmul(np.swapaxes(jac, 1, 2), jac) * self.ratio[rows, None, None]
-        prior = _prior_diagonal(self._sub(self.obj, rows), self.cols, body.num_pose, body.num_coeffs, b)
-        return hess + prior[:, :, None] * np.eye(len(self.cols))
+        return hess + self._prior(rows)[:, :, None] * np.eye(len(self.cols))
+
+    def _columns(self, jac: np.ndarray) -> np.ndarray:
+        """The fitted parameters' columns of a Jacobian (or gradient) over [θ, coeffs, transl]."""
+        if self.transform is not None:
+            return jac @ self.transform
+        return jac if self.select is None else jac[..., self.select]
+
+    def _prior(self, rows: np.ndarray) -> np.ndarray:
+        """(b, P) weights of the quadratic priors on the fitted columns."""
+        body, obj = self.body, self.obj
+        q, k = body.num_pose, body.num_coeffs
+        full = np.zeros((len(rows), q + k + 3))
+        if obj.pose_prior is not None:
+            prior = obj.pose_prior
+            full[:, :q] = prior[rows] if prior.ndim == 2 and prior.shape[0] == len(obj.weights) else prior
+        if obj.shape_prior:
+            full[:, q : q + k] = obj.shape_prior
+        return full[:, self.cols]
 
 
 def refine(

@@ -18,6 +18,7 @@ from smplcore.fit.solver import Objective, State
 # each joint moves most).
 _SUBSET_POINTS = 300
 _PER_PART = 4
+_HESSIAN_EVERY = 3
 
 
 def _weights(value: Any, name: str, batch: int, count: int) -> np.ndarray:
@@ -135,7 +136,9 @@ def solve(
         state = initialize(body, sub, state, iterations=init_iterations)
     iterations = 0
     if len(subset) < n:
-        state, _, _, _, iterations = refine(body, sub, state, dtype=dtype, max_iter=max_iter, tol=tol)
+        state, _, _, _, iterations = refine(
+            body, sub, state, dtype=dtype, max_iter=max_iter, tol=tol, hessian_every=_HESSIAN_EVERY
+        )
     h_all = sub if len(subset) < n else None
     state, _, dist, converged, more = refine(
         body,
@@ -145,6 +148,7 @@ def solve(
         dtype=dtype,
         max_iter=max_iter,
         tol=tol,
+        hessian_every=_HESSIAN_EVERY,
     )
     return state, dist, converged, iterations + more
 
