@@ -27,6 +27,8 @@ from smplcore.fit.solver import (
 
 # Bodies per chunk: keeps the (n, 3, 3, chunk) working arrays of a 10k-vertex mesh near 100 MB.
 _CHUNK_POINTS = 1_500_000
+# Values of the dense subset Jacobian per chunk of bodies (~100 MB in float64).
+_CHUNK_JACOBIAN = 12_000_000
 
 
 class _Problem:
@@ -78,12 +80,19 @@ class _Problem:
         return Objective(**{**obj.__dict__, "pose_prior": prior, "pose_mean": mean})
 
     def hessian(self, state: State, rows: np.ndarray) -> np.ndarray:
-        """(b, P, P) Gauss–Newton matrix of the subset, scaled to the whole set, plus the priors' diagonal."""
+        """(b, P, P) Gauss–Newton matrix of the subset, scaled to the whole set, plus the priors' diagonal
+        (in chunks of bodies: the dense Jacobian has 3 n P values per body)."""
         body, hobj = self.body, self.hobj
-        posed = dense.pose(body, self.harrays, body.full_pose(state.pose), state.coeffs, state.transl)
-        jac = self._columns(dense.jacobian(body, hobj.points, posed))
-        jac *= np.sqrt(np.repeat(hobj.weights[rows], 3, axis=1))[..., None]
-        hess = np.matmul(np.swapaxes(jac, 1, 2), jac) * self.ratio[rows, None, None]
+        per_body = 3 * len(hobj.points.ids) * (3 * body.num_joints + body.num_coeffs + 3)
+        chunk = max(1, _CHUNK_JACOBIAN // per_body)
+        hess = np.empty((len(rows), len(self.cols), len(self.cols)))
+        for s in range(0, len(rows), chunk):
+            part = slice(s, s + chunk)
+            sub = _unflat(body, _flat(state)[part])
+            posed = dense.pose(body, self.harrays, body.full_pose(sub.pose), sub.coeffs, sub.transl)
+            jac = self._columns(dense.jacobian(body, hobj.points, posed))
+            jac *= np.sqrt(np.repeat(hobj.weights[rows[part]], 3, axis=1))[..., None]
+            hess[part] = np.matmul(np.swapaxes(jac, 1, 2), jac) * self.ratio[rows[part], None, None]
         return hess + self._prior(rows)[:, :, None] * np.eye(len(self.cols))
 
     def _columns(self, jac: np.ndarray) -> np.ndarray:
@@ -128,6 +137,10 @@ def refine(
     problem = _Problem(body, obj, hessian_obj, dtype)
     if abs_tol is None:  # what the working precision resolves: ~0.1 µm (float64), ~1 µm (float32) RMS
         abs_tol = 1e-14 if np.dtype(dtype) == np.float64 else 1e-12
+    if np.dtype(dtype) != np.float64:
+        # float32 points resolve a cost to ~1e-5 relative and a pose to ~1e-6: tighter tests only add
+        # rejected steps
+        tol, step_tol = max(tol, 1e-5), max(step_tol, 1e-6)
     batch = len(state.pose)
     q = body.num_pose
     cols = problem.cols

@@ -30,16 +30,25 @@ def kabsch(source: np.ndarray, target: np.ndarray, weights: np.ndarray) -> tuple
     rotations : (..., 3, 3) ``R`` minimising Σ w |R (s − s̄) − (t − t̄)|².
     strength : (...,) the two largest singular values' smaller one (≈ 0: the rotation is undetermined).
     """
-    total = np.maximum(weights.sum(-1, keepdims=True), 1e-300)
-    sc = source - np.einsum("...n,...nc->...c", weights, source)[..., None, :] / total[..., None]
-    tc = target - np.einsum("...n,...nc->...c", weights, target)[..., None, :] / total[..., None]
-    cov = np.einsum("...n,...nc,...nd->...cd", weights, tc, sc)
+    total = weights.sum(-1)
+    moments = np.einsum("...n,...nc,...nd->...cd", weights, target, source)
+    return _rotations_from_moments(
+        moments, np.einsum("...n,...nc->...c", weights, target), np.einsum("...n,...nc->...c", weights, source), total
+    )
+
+
+def _rotations_from_moments(
+    moments: np.ndarray, target_sum: np.ndarray, source_sum: np.ndarray, total: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Kabsch from weighted sums: Σ w t sᵀ (..., 3, 3), Σ w t, Σ w s (..., 3) and Σ w (...,)."""
+    safe = np.maximum(total, 1e-300)[..., None, None]
+    cov = moments - target_sum[..., :, None] * source_sum[..., None, :] / safe
     u, sing, vt = np.linalg.svd(cov)
     sign = np.sign(np.linalg.det(u @ vt))
     sign = np.where(sign == 0, 1.0, sign)
     u = u.copy()
     u[..., :, 2] *= sign[..., None]
-    return u @ vt, sing[..., 1] / np.maximum(total[..., 0], 1e-300)
+    return u @ vt, sing[..., 1] / safe[..., 0, 0]
 
 
 def rotation_log(rotmats: np.ndarray) -> np.ndarray:
@@ -55,8 +64,10 @@ def part_rotations(body: FitBody, pts: Points, rest: np.ndarray, targets: np.nda
     for m in range(pts.joints.shape[1]):
         np.add.at(membership, (np.arange(n), pts.joints[:, m]), pts.weights[:, m])
     membership = np.where(membership >= 0.5, membership, 0.0)  # a part: the points it mostly moves
-    w = np.einsum("nj,bn->bjn", membership, weights)
-    rot, strength = kabsch(rest[:, None], targets[:, None], w)
+    w = membership.T[None] * weights[:, None, :]  # (B, J, n)
+    outer = (targets[..., :, None] * rest[..., None, :]).reshape(len(rest), n, 9)
+    moments = (w @ outer).reshape(len(rest), body.num_joints, 3, 3)  # per part Σ w t sᵀ, one product
+    rot, strength = _rotations_from_moments(moments, w @ targets, w @ rest, w.sum(-1))
     return rot, strength > 1e-6
 
 

@@ -19,6 +19,7 @@ from smplcore.fit.solver import Objective, State
 _SUBSET_POINTS = 300
 _PER_PART = 4
 _HESSIAN_EVERY = 3
+_FULL_PER_PART = 25
 
 
 def _weights(value: Any, name: str, batch: int, count: int) -> np.ndarray:
@@ -139,7 +140,10 @@ def solve(
         state, _, _, _, iterations = refine(
             body, sub, state, dtype=dtype, max_iter=max_iter, tol=tol, hessian_every=_HESSIAN_EVERY
         )
-    h_all = sub if len(subset) < n else None
+    # the whole set: its Gauss-Newton matrix from a sample of every part weighted as the part (computed
+    # once: exact targets stop at the first evaluation, noisy ones need a few gradient steps)
+    h_rows, h_w = part_sample(body, point_ids, weights, _FULL_PER_PART)
+    h_all = objective(h_rows, h_w) if len(h_rows) < n else None
     state, _, dist, converged, more = refine(
         body,
         objective(np.arange(n)),
@@ -148,7 +152,7 @@ def solve(
         dtype=dtype,
         max_iter=max_iter,
         tol=tol,
-        hessian_every=_HESSIAN_EVERY,
+        hessian_every=max_iter,
     )
     return state, dist, converged, iterations + more
 
