@@ -143,7 +143,7 @@ def solve(
     # the whole set: its Gauss-Newton matrix from a sample of every part weighted as the part (computed
     # once: exact targets stop at the first evaluation, noisy ones need a few gradient steps)
     h_rows, h_w = part_sample(body, point_ids, weights, _FULL_PER_PART)
-    h_all = objective(h_rows, h_w) if len(h_rows) < n else None
+    h_all = objective(h_rows, h_w) if len(subset) < n and len(h_rows) < n else None  # few points: exact
     state, _, dist, converged, more = refine(
         body,
         objective(np.arange(n)),
@@ -152,7 +152,7 @@ def solve(
         dtype=dtype,
         max_iter=max_iter,
         tol=tol,
-        hessian_every=max_iter,
+        hessian_every=max_iter if h_all is not None else _HESSIAN_EVERY,
     )
     return state, dist, converged, iterations + more
 
