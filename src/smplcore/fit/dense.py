@@ -195,21 +195,24 @@ def _jacobian_constants(body: FitBody, pts: Points) -> tuple:
 
 
 def jacobian(body: FitBody, pts: Points, posed: Posed) -> np.ndarray:
-    """(B, 3 n, 3 J + K + 3) exact Jacobian of the posed points ``pts`` (float64), equal to
+    """(B, 3 n, 3 J + K + 3) exact Jacobian of the posed points ``pts`` (in the posed arrays' precision), equal to
     :func:`smplcore.fit.body.pose_points`' — built from the ancestors of each point only."""
     batch, num_joints = posed.theta.shape[:2]
     n, k = len(pts.ids), pts.shape.shape[-1]
     ancestors, below, below_sum, posedirs = _jacobian_constants(body, pts)
-    rest = np.moveaxis(posed.rest, -1, 0).astype(np.float64)  # (B, n, 3)
-    moved = posed.world[:, pts.joints] @ rest[:, :, None, :, None]  # (B, n, m, 3, 1)
-    moved = moved[..., 0] + posed.shift[:, pts.joints]
-    u = np.einsum("nam,bnmc->bnac", below, moved) - below_sum[None, :, :, None] * posed.pos[:, ancestors]
-    local = (posed.world @ right_jacobian(posed.theta))[:, ancestors]  # (B, n, a, 3 c, 3 col)
+    f = posed.rest.dtype  # float32 for float32 working arrays: a Gauss-Newton matrix need not be exact
+    rest = np.moveaxis(posed.rest, -1, 0)  # (B, n, 3)
+    world = posed.world.astype(f)
+    moved = world[:, pts.joints] @ rest[:, :, None, :, None]  # (B, n, m, 3, 1)
+    moved = moved[..., 0] + posed.shift.astype(f)[:, pts.joints]
+    u = np.einsum("nam,bnmc->bnac", below.astype(f), moved)
+    u -= below_sum.astype(f)[None, :, :, None] * posed.pos.astype(f)[:, ancestors]
+    local = (posed.world @ right_jacobian(posed.theta)).astype(f)[:, ancestors]  # (B, n, a, 3 c, 3 col)
     u0, u1, u2 = u[..., 0, None], u[..., 1, None], u[..., 2, None]
     l0, l1, l2 = local[..., 0, :], local[..., 1, :], local[..., 2, :]  # rows c of the columns col
     blocks = np.stack([l1 * u2 - l2 * u1, l2 * u0 - l0 * u2, l0 * u1 - l1 * u0], axis=-2)  # (B, n, a, c, col)
     width = 3 * num_joints + k + 3
-    jac = np.zeros((batch, n, 3, width))
+    jac = np.zeros((batch, n, 3, width), f)
     # flat positions of the blocks in jac: body b, point i, row c, column 3 ancestor + col
     offsets = (np.arange(n)[:, None, None, None] * 3 * width + np.arange(3)[None, None, :, None] * width) + (
         3 * ancestors[:, :, None, None] + np.arange(3)[None, None, None, :]
@@ -217,15 +220,15 @@ def jacobian(body: FitBody, pts: Points, posed: Posed) -> np.ndarray:
     flat = (np.arange(batch)[:, None] * (n * 3 * width) + offsets.reshape(1, -1)).reshape(-1)
     jac.reshape(-1)[flat] = blocks.reshape(-1)
     rot = jac[..., : 3 * num_joints].reshape(batch, n, 3, num_joints, 3)
-    blend = np.moveaxis(posed.blend, -1, 0).astype(np.float64)  # (B, n, 3, 3)
+    blend = np.moveaxis(posed.blend, -1, 0)  # (B, n, 3, 3)
     if posedirs is not None:
         jr = right_jacobian(posed.theta[:, 1:])
         dvec = (posed.rot[:, 1:, None] @ skew(np.swapaxes(jr, -1, -2))).reshape(batch, num_joints - 1, 3, 9)
-        mixed = (blend @ posedirs).reshape(batch, n * 3, num_joints - 1, 9).transpose(0, 2, 1, 3)
-        corr = mixed @ np.swapaxes(dvec, -1, -2)  # (B, J - 1, 3 n, 3 a)
+        mixed = (blend @ posedirs.astype(f)).reshape(batch, n * 3, num_joints - 1, 9).transpose(0, 2, 1, 3)
+        corr = mixed @ np.swapaxes(dvec, -1, -2).astype(f)  # (B, J - 1, 3 n, 3 a)
         rot[:, :, :, 1:] += np.moveaxis(corr.reshape(batch, num_joints - 1, n, 3, 3), 1, 3)
-    totals = shape_steps(body, posed.world)  # (B, J, 3, K)
-    jac[..., 3 * num_joints : 3 * num_joints + k] = blend @ pts.shape + np.einsum(
+    totals = shape_steps(body, posed.world).astype(f)  # (B, J, 3, K)
+    jac[..., 3 * num_joints : 3 * num_joints + k] = blend @ pts.shape.astype(f) + np.einsum(
         "nm,bnmck->bnck", pts.weights, totals[:, pts.joints]
     )
     jac[..., -3:] = np.eye(3)

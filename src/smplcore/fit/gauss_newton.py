@@ -38,7 +38,7 @@ class _Problem:
         self.body, self.obj = body, obj
         self.hobj = hessian_obj if hessian_obj is not None else obj
         self.arrays = dense.dense_points(body, obj.points, dtype)
-        self.harrays = dense.dense_points(body, self.hobj.points, np.float64)
+        self.harrays = dense.dense_points(body, self.hobj.points, dtype)
         self.targets = np.ascontiguousarray(np.moveaxis(obj.targets, 0, -1), dtype=dtype)  # (n, 3, B)
         self.weights = np.ascontiguousarray(obj.weights.T, dtype=dtype)  # (n, B)
         cols = _columns(body, obj)
@@ -91,7 +91,7 @@ class _Problem:
             sub = _unflat(body, _flat(state)[part])
             posed = dense.pose(body, self.harrays, body.full_pose(sub.pose), sub.coeffs, sub.transl)
             jac = self._columns(dense.jacobian(body, hobj.points, posed))
-            jac *= np.sqrt(np.repeat(hobj.weights[rows[part]], 3, axis=1))[..., None]
+            jac *= np.sqrt(np.repeat(hobj.weights[rows[part]], 3, axis=1))[..., None].astype(jac.dtype)
             hess[part] = np.matmul(np.swapaxes(jac, 1, 2), jac) * self.ratio[rows[part], None, None]
         return hess + self._prior(rows)[:, :, None] * np.eye(len(self.cols))
 
