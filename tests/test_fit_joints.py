@@ -108,3 +108,13 @@ def test_landmarks_are_refused(fake_models):
     landmark = model.joint_names[-1]
     with pytest.raises(ValueError, match="landmark"):
         fit.fit_joints(model, np.zeros((1, 3, 3)), joint_names=["pelvis", "left_hip", landmark])
+
+
+def test_closed_form_start_alone_is_within_millimetres(open_model):
+    params = _poses(4, np.random.default_rng(5), scale=0.2)
+    target = open_model(**params).joints[:, :22]
+    r = fit.fit_joints(open_model, target, max_iter=0)
+    assert r.iterations == 0
+    assert r.joint_error.max() < 0.01
+    refined = fit.fit_joints(open_model, target)
+    assert refined.joint_error.mean() <= r.joint_error.mean() + 1e-9

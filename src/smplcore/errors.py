@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import sys
+from types import FrameType
 import warnings
 
 
@@ -41,9 +42,9 @@ def _internal(filename: str) -> bool:
     return filename.startswith(_PACKAGE_DIR) or any(d in filename for d in _WRAPPER_DIRS)
 
 
-def warn(message: str, category: type[Warning] = UserWarning) -> None:
+def warn(message: str | Warning, category: type[Warning] = UserWarning) -> None:
     """``warnings.warn`` attributed to the caller's line: the first frame outside smplcore."""
-    frame = sys._getframe(1)
+    frame: FrameType | None = sys._getframe(1)
     level = 2
     while frame is not None and _internal(frame.f_code.co_filename):
         frame = frame.f_back

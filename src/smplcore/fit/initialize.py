@@ -12,8 +12,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from smplcore.engine import rodrigues
+from smplcore.fit import dense
 from smplcore.fit.body import FitBody, Points
-from smplcore.fit.solver import Objective, State, _step, normal_equations
+from smplcore.fit.solver import Objective, State, _step
 
 
 def kabsch(source: np.ndarray, target: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -29,16 +30,25 @@ def kabsch(source: np.ndarray, target: np.ndarray, weights: np.ndarray) -> tuple
     rotations : (..., 3, 3) ``R`` minimising Σ w |R (s − s̄) − (t − t̄)|².
     strength : (...,) the two largest singular values' smaller one (≈ 0: the rotation is undetermined).
     """
-    total = np.maximum(weights.sum(-1, keepdims=True), 1e-300)
-    sc = source - np.einsum("...n,...nc->...c", weights, source)[..., None, :] / total[..., None]
-    tc = target - np.einsum("...n,...nc->...c", weights, target)[..., None, :] / total[..., None]
-    cov = np.einsum("...n,...nc,...nd->...cd", weights, tc, sc)
+    total = weights.sum(-1)
+    moments = np.einsum("...n,...nc,...nd->...cd", weights, target, source)
+    return _rotations_from_moments(
+        moments, np.einsum("...n,...nc->...c", weights, target), np.einsum("...n,...nc->...c", weights, source), total
+    )
+
+
+def _rotations_from_moments(
+    moments: np.ndarray, target_sum: np.ndarray, source_sum: np.ndarray, total: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Kabsch from weighted sums: Σ w t sᵀ (..., 3, 3), Σ w t, Σ w s (..., 3) and Σ w (...,)."""
+    safe = np.maximum(total, 1e-300)[..., None, None]
+    cov = moments - target_sum[..., :, None] * source_sum[..., None, :] / safe
     u, sing, vt = np.linalg.svd(cov)
     sign = np.sign(np.linalg.det(u @ vt))
     sign = np.where(sign == 0, 1.0, sign)
     u = u.copy()
     u[..., :, 2] *= sign[..., None]
-    return u @ vt, sing[..., 1] / np.maximum(total[..., 0], 1e-300)
+    return u @ vt, sing[..., 1] / safe[..., 0, 0]
 
 
 def rotation_log(rotmats: np.ndarray) -> np.ndarray:
@@ -54,8 +64,10 @@ def part_rotations(body: FitBody, pts: Points, rest: np.ndarray, targets: np.nda
     for m in range(pts.joints.shape[1]):
         np.add.at(membership, (np.arange(n), pts.joints[:, m]), pts.weights[:, m])
     membership = np.where(membership >= 0.5, membership, 0.0)  # a part: the points it mostly moves
-    w = np.einsum("nj,bn->bjn", membership, weights)
-    rot, strength = kabsch(rest[:, None], targets[:, None], w)
+    w = membership.T[None] * weights[:, None, :]  # (B, J, n)
+    outer = (targets[..., :, None] * rest[..., None, :]).reshape(len(rest), n, 9)
+    moments = (w @ outer).reshape(len(rest), body.num_joints, 3, 3)  # per part Σ w t sᵀ, one product
+    rot, strength = _rotations_from_moments(moments, w @ targets, w @ rest, w.sum(-1))
     return rot, strength > 1e-6
 
 
@@ -97,23 +109,34 @@ def initialize(body: FitBody, obj: Objective, state: State, *, iterations: int =
 
 def shape_and_translation(body: FitBody, obj: Objective, state: State) -> State:
     """The least-squares shape coefficients and translation for the state's rotations (exact: the posed
-    points are affine in them), by one Gauss–Newton step on those columns."""
-    if not (obj.free_coeffs.any() or obj.fit_transl):
+    points are affine in them), from one linear solve on those columns (shape prior included)."""
+    free = np.flatnonzero(obj.free_coeffs)
+    if not (len(free) or obj.fit_transl):
         return state
     state = state.copy()
-    batch, q = len(state.pose), body.num_pose
-    lin_obj = Objective(**{**obj.__dict__, "pose_prior": None, "pose_mean": None})
-    hess, grad, _ = normal_equations(body, lin_obj, state)
-    assert hess is not None  # asked for
-    keep = np.arange(q, hess.shape[1])
-    hess, grad = hess[:, keep][:, :, keep], grad[:, keep]
-    cols = np.flatnonzero(obj.free_coeffs)
-    shared = np.zeros(len(keep), bool)
-    shared[: len(cols)] = obj.shared[cols]
+    batch = len(state.pose)
+    arrays = dense.dense_points(body, obj.points)
+    posed = dense.pose(body, arrays, body.full_pose(state.pose), state.coeffs, state.transl)
+    n = arrays.count
+    blocks = [np.moveaxis(dense.coefficient_jacobian(body, obj.points, arrays, posed)[:, :, free], -1, 0)]
+    if obj.fit_transl:
+        blocks.append(np.broadcast_to(np.eye(3), (batch, n, 3, 3)))
+    jac = np.concatenate(blocks, axis=-1).reshape(batch, 3 * n, -1)  # (B, 3 n, K' + 3)
+    sw = np.sqrt(np.repeat(obj.weights, 3, axis=1))[..., None]
+    res = np.moveaxis(posed.points - np.moveaxis(obj.targets, 0, -1), -1, 0).reshape(batch, 3 * n, 1)
+    jw = jac * sw
+    hess = np.matmul(np.swapaxes(jw, 1, 2), jw)
+    grad = np.matmul(np.swapaxes(jw, 1, 2), res * sw)[..., 0]
+    if obj.shape_prior:
+        k = len(free)
+        hess[:, np.arange(k), np.arange(k)] += obj.shape_prior
+        grad[:, :k] += obj.shape_prior * state.coeffs[:, free]
+    shared = np.zeros(hess.shape[1], bool)
+    shared[: len(free)] = obj.shared[free]
     if batch == 1:
         shared[:] = False
     step = _step(hess, grad, np.full(batch, 1e-9), shared)
-    state.coeffs[:, cols] += step[:, : len(cols)]
+    state.coeffs[:, free] += step[:, : len(free)]
     if obj.fit_transl:
-        state.transl += step[:, len(cols) :]
+        state.transl += step[:, len(free) :]
     return state

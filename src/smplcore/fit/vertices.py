@@ -7,13 +7,19 @@ from typing import Any
 import numpy as np
 
 from smplcore.errors import ShapeError
-from smplcore.fit.body import FitBody, pose_points
+from smplcore.fit.body import FitBody
+from smplcore.fit.gauss_newton import refine
 from smplcore.fit.initialize import initialize
 from smplcore.fit.result import FitResult, as_array, params_to_state, single_threaded_blas, state_to_params
-from smplcore.fit.solver import Objective, State, levenberg_marquardt
+from smplcore.fit.solver import Objective, State
 
-# Above this many points the first iterations run on an even subset (the last ones on all points).
-_SUBSET_POINTS = 800
+# Above this many points the initialiser and the first iterations run on an even subset (the last ones
+# on all points); the Gauss-Newton matrix always comes from a smaller subset (spread, plus the points
+# each joint moves most).
+_SUBSET_POINTS = 300
+_PER_PART = 4
+_HESSIAN_EVERY = 3
+_FULL_PER_PART = 25
 
 
 def _weights(value: Any, name: str, batch: int, count: int) -> np.ndarray:
@@ -61,6 +67,35 @@ def spread_subset(body: FitBody, point_ids: np.ndarray, size: int, per_part: int
     return np.unique(np.concatenate(rows))
 
 
+def part_sample(body: FitBody, point_ids: np.ndarray, weights: np.ndarray, per_part: int) -> tuple:
+    """A stratified sample for the Gauss–Newton matrix: up to ``per_part`` points of each part (the points a
+    joint moves most), spread over the part, each weighted by its part's total weight over the sample's,
+    so that every part counts in the sample as much as in the whole set. Joint targets all stay.
+
+    Returns rows (s,) into ``point_ids`` and their weights (B, s).
+    """
+    mesh = point_ids < body.num_vertices
+    main = np.where(mesh, body.joints[point_ids, 0], -1)
+    rows, scale = [np.flatnonzero(~mesh)], [np.ones((len(weights), int((~mesh).sum())))]
+    for j in range(body.num_joints):
+        mine = np.flatnonzero(main == j)
+        if not len(mine):
+            continue
+        pick = mine[even_subset(len(mine), per_part)]
+        total, kept = weights[:, mine].sum(1), weights[:, pick].sum(1)
+        rows.append(pick)
+        scale.append(np.broadcast_to((total / np.maximum(kept, 1e-300))[:, None], (len(weights), len(pick))))
+    order = np.concatenate(rows)
+    factor = np.concatenate(scale, axis=1)
+    return order, weights[:, order] * factor
+
+
+def working_dtype(model: Any) -> type:
+    """float32 for float32 models (the products over points run twice as fast), else float64."""
+    name = str(getattr(model, "dtype", "float64"))
+    return np.float32 if name.endswith("float32") else np.float64
+
+
 def solve(
     body: FitBody,
     point_ids: np.ndarray,
@@ -76,14 +111,16 @@ def solve(
     init_iterations: int,
     max_iter: int,
     tol: float,
-) -> tuple[State, np.ndarray, int]:
-    """Initialiser (on a subset of points when there are many), then LM on the subset and on all points."""
+    dtype: type = np.float64,
+) -> tuple[State, np.ndarray, np.ndarray, int]:
+    """Initialiser and LM on a subset of the points, then LM on all of them (both with the Gauss–Newton
+    matrix of a smaller subset). Returns the state, (B, n) point distances, converged flags, iterations."""
 
-    def objective(rows: np.ndarray) -> Objective:
+    def objective(rows: np.ndarray, w: np.ndarray | None = None) -> Objective:
         return Objective(
             body.points(point_ids[rows]),
             targets[:, rows],
-            weights[:, rows],
+            weights[:, rows] if w is None else w,
             free,
             shared,
             fit_transl,
@@ -93,24 +130,31 @@ def solve(
 
     n = len(point_ids)
     joint_rows = np.flatnonzero(point_ids >= body.num_vertices)
-    subset = np.union1d(spread_subset(body, point_ids, _SUBSET_POINTS), joint_rows)
-    state = start
+    subset = np.union1d(spread_subset(body, point_ids, _SUBSET_POINTS, _PER_PART), joint_rows)
     sub = objective(subset)
+    state = start
     if init_iterations:
         state = initialize(body, sub, state, iterations=init_iterations)
     iterations = 0
     if len(subset) < n:
-        state, _, _, iterations = levenberg_marquardt(body, sub, state, max_iter=max_iter, tol=tol)
-    hessian_obj = sub if len(subset) < n else None
-    state, _, converged, more = levenberg_marquardt(
+        state, _, _, _, iterations = refine(
+            body, sub, state, dtype=dtype, max_iter=max_iter, tol=tol, hessian_every=_HESSIAN_EVERY
+        )
+    # the whole set: its Gauss-Newton matrix from a sample of every part weighted as the part (computed
+    # once: exact targets stop at the first evaluation, noisy ones need a few gradient steps)
+    h_rows, h_w = part_sample(body, point_ids, weights, _FULL_PER_PART)
+    h_all = objective(h_rows, h_w) if len(subset) < n and len(h_rows) < n else None  # few points: exact
+    state, _, dist, converged, more = refine(
         body,
         objective(np.arange(n)),
         state,
-        max_iter=max_iter if hessian_obj is None else 10,
+        hessian_obj=h_all,
+        dtype=dtype,
+        max_iter=max_iter,
         tol=tol,
-        hessian_obj=hessian_obj,
+        hessian_every=max_iter if h_all is not None else _HESSIAN_EVERY,
     )
-    return state, converged, iterations + more
+    return state, dist, converged, iterations + more
 
 
 @single_threaded_blas
@@ -198,7 +242,7 @@ def fit_vertices(
     start = params_to_state(body, {**(init or {}), **({} if betas is None else {"betas": betas})}, batch)
     free, shared = coefficient_masks(body, fit_betas, fit_expression, share_betas)
     pose_w = body.pose_prior_weights(pose_prior)
-    state, converged, iterations = solve(
+    state, dist, converged, iterations = solve(
         body,
         point_ids,
         targets,
@@ -212,9 +256,8 @@ def fit_vertices(
         init_iterations=init_iterations,
         max_iter=max_iter,
         tol=tol,
+        dtype=working_dtype(model),
     )
-    posed = pose_points(body, body.points(point_ids), body.full_pose(state.pose), state.coeffs, state.transl).points
-    dist = np.linalg.norm(posed - targets, axis=-1)
     return FitResult(
         params=state_to_params(body, model, state),
         vertex_error=dist[:, : len(ids)].mean(1),

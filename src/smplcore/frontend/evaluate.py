@@ -50,9 +50,11 @@ class ArraySource(Protocol):
 
     def trainable(self) -> bool: ...
 
-    #: The arrays' name in :mod:`smplcore.engine.kernels.ops` (torch modules), or None: then a
-    #: ``torch.compile``-d call runs the reference kernel.
-    handle: int | None
+    @property
+    def handle(self) -> int | None:
+        """The arrays' name in :mod:`smplcore.engine.kernels.ops` (torch modules), or None: then a
+        ``torch.compile``-d call runs the reference kernel."""
+        ...
 
     def latest_arrays(self) -> engine.BodyArrays:
         """The fast arrays as last built (their tree and layout), without checking for edits."""
@@ -268,10 +270,11 @@ def _operator_forward(
     from smplcore.engine.kernels import ops
 
     mesh = vertices or setup.keypoints.extra.size or setup.spec.landmarks or setup.regressor is not None
-    arrays = source.latest_arrays()
+    arrays, handle = source.latest_arrays(), source.handle
+    assert handle is not None  # evaluate() runs the reference kernel for sources without one
     if not mesh:
-        return None, ops.joints(source.handle, arrays, coeffs, rotmats)
-    verts, joints = ops.forward(source.handle, arrays, coeffs, rotmats, translation=None, gradients=gradients)
+        return None, ops.joints(handle, arrays, coeffs, rotmats)
+    verts, joints = ops.forward(handle, arrays, coeffs, rotmats, translation=None, gradients=gradients)
     return verts, _with_mesh_keypoints(setup, source, joints, verts, rotmats, like)
 
 

@@ -42,7 +42,11 @@ _counter = itertools.count(1)
 def register(provider: Provider) -> int:
     """A handle naming ``provider`` in the operators (forgotten when the provider is collected)."""
     handle = next(_counter)
-    _providers[handle] = weakref.ref(provider, lambda _, h=handle: _providers.pop(h, None))
+
+    def forget(_: weakref.ref) -> None:
+        _providers.pop(handle, None)
+
+    _providers[handle] = weakref.ref(provider, forget)
     return handle
 
 
@@ -181,6 +185,7 @@ def _skin_backward(
     grad_rest, grad_transforms = skin_autograd.skin_backward(
         rest, transforms, blocks, tiles, grad_out.contiguous(), (True, True)
     )
+    assert grad_rest is not None and grad_transforms is not None  # both asked for
     return grad_rest, grad_transforms.contiguous()
 
 

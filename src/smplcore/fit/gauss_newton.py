@@ -1,0 +1,217 @@
+"""Levenberg–Marquardt with the exact gradient over every point and a Gauss–Newton matrix from a subset.
+
+Each iteration evaluates the cost and the exact gradient ``Jᵀ r`` over all the objective's points with
+:mod:`smplcore.fit.dense` (a few matrix products per batch, no dense Jacobian), and takes the Gauss–Newton
+matrix ``Jᵀ W J`` from a small, well-spread subset of points (dense Jacobian, scaled to the whole set's
+weight). The step is still a descent step and the fixed point is the optimum of the whole objective —
+only the convergence rate depends on how well the subset's matrix stands for the whole set's. Bodies
+are solved in chunks (independent problems) unless shape coefficients are shared over the batch.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from smplcore.fit import dense
+from smplcore.fit.body import FitBody
+from smplcore.fit.solver import (
+    Objective,
+    State,
+    _column_map,
+    _columns,
+    _flat,
+    _prior_cost,
+    _step,
+    _unflat,
+)
+
+# Bodies per chunk: keeps the (n, 3, 3, chunk) working arrays of a 10k-vertex mesh near 100 MB.
+_CHUNK_POINTS = 1_500_000
+# Values of the dense subset Jacobian per chunk of bodies (~100 MB in float64).
+_CHUNK_JACOBIAN = 12_000_000
+
+
+class _Problem:
+    """The objective's constant arrays, in batch-last layout and the working precision."""
+
+    def __init__(self, body: FitBody, obj: Objective, hessian_obj: Objective | None, dtype: type) -> None:
+        self.body, self.obj = body, obj
+        self.hobj = hessian_obj if hessian_obj is not None else obj
+        self.arrays = dense.dense_points(body, obj.points, dtype)
+        self.harrays = dense.dense_points(body, self.hobj.points, dtype)
+        self.targets = np.ascontiguousarray(np.moveaxis(obj.targets, 0, -1), dtype=dtype)  # (n, 3, B)
+        self.weights = np.ascontiguousarray(obj.weights.T, dtype=dtype)  # (n, B)
+        cols = _columns(body, obj)
+        q, nj = body.num_pose, body.num_joints
+        self.select = None  # the Jacobian's columns are the parameters' (axis-angle pose): pick, not multiply
+        if body.pose_map is None:
+            # joints that move no point (a wrist with 22 joint targets) are left as they are: their only
+            # term is the pose prior, whose optimum is its centre, where the initialiser leaves them
+            moving = np.zeros(nj + 1, bool)
+            moving[obj.points.ancestors] = True
+            cols = cols[(cols >= q) | moving[np.minimum(cols // 3, nj)]]
+            self.select = None if len(cols) == q + body.num_coeffs + 3 else cols
+        self.cols = cols
+        self.transform = None if body.pose_map is None else _column_map(body, cols)
+        self.ratio = obj.weights.sum(1) / np.maximum(self.hobj.weights.sum(1), 1e-300)
+
+    def evaluate(self, state: State, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Cost (b,), gradient (b, P) over the fitted columns and point distances (b, n) of bodies ``rows``."""
+        body, obj = self.body, self.obj
+        posed = dense.pose(body, self.arrays, body.full_pose(state.pose), state.coeffs, state.transl)
+        diff = posed.points - self.targets[..., rows]
+        w = self.weights[:, rows]
+        cost = np.einsum("nb,ncb,ncb->b", w, diff, diff, dtype=np.float64)
+        grad = self._columns(dense.gradient(body, self.arrays, posed, diff * w[:, None]))
+        x = _flat(state)
+        if obj.pose_mean is not None:
+            x[:, : body.num_pose] -= obj.pose_mean[rows]
+        sub = self._sub(obj, rows)
+        grad = grad + self._prior(rows) * x[:, self.cols]
+        dist = np.sqrt(np.einsum("ncb,ncb->bn", diff, diff, dtype=np.float64))
+        return cost + _prior_cost(sub, state), grad, dist
+
+    @staticmethod
+    def _sub(obj: Objective, rows: np.ndarray) -> Objective:
+        prior = obj.pose_prior
+        if prior is not None and prior.ndim == 2:
+            prior = prior[rows]
+        mean = None if obj.pose_mean is None else obj.pose_mean[rows]
+        return Objective(**{**obj.__dict__, "pose_prior": prior, "pose_mean": mean})
+
+    def hessian(self, state: State, rows: np.ndarray) -> np.ndarray:
+        """(b, P, P) Gauss–Newton matrix of the subset, scaled to the whole set, plus the priors' diagonal
+        (in chunks of bodies: the dense Jacobian has 3 n P values per body)."""
+        body, hobj = self.body, self.hobj
+        per_body = 3 * len(hobj.points.ids) * (3 * body.num_joints + body.num_coeffs + 3)
+        chunk = max(1, _CHUNK_JACOBIAN // per_body)
+        hess = np.empty((len(rows), len(self.cols), len(self.cols)))
+        for s in range(0, len(rows), chunk):
+            part = slice(s, s + chunk)
+            sub = _unflat(body, _flat(state)[part])
+            posed = dense.pose(body, self.harrays, body.full_pose(sub.pose), sub.coeffs, sub.transl)
+            jac = self._columns(dense.jacobian(body, hobj.points, posed))
+            jac *= np.sqrt(np.repeat(hobj.weights[rows[part]], 3, axis=1))[..., None].astype(jac.dtype)
+            hess[part] = np.matmul(np.swapaxes(jac, 1, 2), jac) * self.ratio[rows[part], None, None]
+        return hess + self._prior(rows)[:, :, None] * np.eye(len(self.cols))
+
+    def _columns(self, jac: np.ndarray) -> np.ndarray:
+        """The fitted parameters' columns of a Jacobian (or gradient) over [θ, coeffs, transl]."""
+        if self.transform is not None:
+            return jac @ self.transform
+        return jac if self.select is None else jac[..., self.select]
+
+    def _prior(self, rows: np.ndarray) -> np.ndarray:
+        """(b, P) weights of the quadratic priors on the fitted columns."""
+        body, obj = self.body, self.obj
+        q, k = body.num_pose, body.num_coeffs
+        full = np.zeros((len(rows), q + k + 3))
+        if obj.pose_prior is not None:
+            prior = obj.pose_prior
+            full[:, :q] = prior[rows] if prior.ndim == 2 and prior.shape[0] == len(obj.weights) else prior
+        if obj.shape_prior:
+            full[:, q : q + k] = obj.shape_prior
+        return full[:, self.cols]
+
+
+def refine(
+    body: FitBody,
+    obj: Objective,
+    state: State,
+    *,
+    hessian_obj: Objective | None = None,
+    dtype: type = np.float64,
+    max_iter: int = 30,
+    tol: float = 1e-8,
+    step_tol: float = 1e-7,
+    abs_tol: float | None = None,
+    hessian_every: int = 1,
+) -> tuple[State, np.ndarray, np.ndarray, np.ndarray, int]:
+    """Minimise ``obj`` from ``state`` (see the module docstring; ``hessian_obj`` is the subset objective,
+    default ``obj`` itself).
+
+    Returns the state, (B,) costs, (B, n) final point distances, (B,) converged flags (relative cost
+    decrease below ``tol``, decrease per unit weight below ``abs_tol`` m², largest step below
+    ``step_tol``, or a cost already below ``abs_tol`` per unit weight) and the most iterations run.
+    """
+    problem = _Problem(body, obj, hessian_obj, dtype)
+    if abs_tol is None:  # what the working precision resolves: ~0.1 µm (float64), ~1 µm (float32) RMS
+        abs_tol = 1e-14 if np.dtype(dtype) == np.float64 else 1e-12
+    if np.dtype(dtype) != np.float64:
+        # float32 points resolve a cost to ~1e-5 relative and a pose to ~1e-6: tighter tests only add
+        # rejected steps
+        tol, step_tol = max(tol, 1e-5), max(step_tol, 1e-6)
+    batch = len(state.pose)
+    q = body.num_pose
+    cols = problem.cols
+    shared_cols = np.zeros(len(cols), bool)
+    is_coeff = (cols >= q) & (cols < q + body.num_coeffs)
+    shared_cols[is_coeff] = obj.shared[cols[is_coeff] - q]
+    coupled = bool(shared_cols.any()) and batch > 1
+    if not coupled:
+        shared_cols[:] = False
+    chunk = batch if coupled else max(1, _CHUNK_POINTS // max(1, len(obj.points.ids)))
+    x = _flat(state).copy()
+    costs = np.empty(batch)
+    dists = np.empty((batch, len(obj.points.ids)))
+    converged = np.zeros(batch, bool)
+    most = 0
+    for s in range(0, batch, chunk):
+        rows = np.arange(s, min(batch, s + chunk))
+        x[rows], costs[rows], dists[rows], converged[rows], its = _solve(
+            body, problem, x[rows], rows, shared_cols, coupled, max_iter, tol, step_tol, abs_tol, hessian_every
+        )
+        most = max(most, its)
+    return _unflat(body, x), costs, dists, converged, most
+
+
+def _solve(body, problem, x, rows, shared_cols, coupled, max_iter, tol, step_tol, abs_tol, every):
+    """LM on the bodies ``rows`` (x: their (b, Q + K + 3) parameters)."""
+    cols = problem.cols
+    scale = np.maximum(problem.obj.weights[rows].sum(1), 1e-300)
+    cost, grad, dist = problem.evaluate(_unflat(body, x), rows)
+    converged = cost <= abs_tol * scale
+    if coupled:
+        converged[:] = converged.all()
+    damping = np.full(len(rows), 1e-4)
+    hess = None
+    fresh = np.zeros(len(rows), bool)  # the Gauss-Newton matrix was computed at the current state
+    age = np.zeros(len(rows), np.int64)
+    iterations = 0
+    for _ in range(max_iter):
+        active = np.flatnonzero(~converged)
+        if not len(active):
+            break
+        iterations += 1
+        sub = rows[active]
+        if hess is None:
+            hess = np.zeros((len(rows), len(cols), len(cols)))
+        stale = active[~fresh[active] & ((age[active] >= every) | (iterations == 1))]
+        if len(stale):
+            hess[stale] = problem.hessian(_unflat(body, x[stale]), rows[stale])
+            fresh[stale], age[stale] = True, 0
+        step = _step(hess[active], grad[active], damping[active], shared_cols)
+        trial = x[active].copy()
+        trial[:, cols] += step
+        new_cost, new_grad, new_dist = problem.evaluate(_unflat(body, trial), sub)
+        better = np.full(len(active), new_cost.sum() <= cost[active].sum()) if coupled else new_cost <= cost[active]
+        old = cost[active]
+        decrease = (old - new_cost) / np.maximum(old, 1e-300)
+        tiny = (old - new_cost) < abs_tol * scale[active]
+        small = np.max(np.abs(step), axis=1) < step_tol
+        keep = active[better]
+        x[keep], cost[keep], grad[keep], dist[keep] = (
+            trial[better],
+            new_cost[better],
+            new_grad[better],
+            new_dist[better],
+        )
+        fresh[keep] = False
+        age[active] += 1
+        age[active[~better]] = every  # a rejected step: recompute the matrix (if stale) and damp more
+        damping[active] = np.where(better, np.maximum(damping[active] / 3, 1e-9), damping[active] * 10)
+        done = (better & ((decrease < tol) | small | tiny)) | (~better & (damping[active] > 1e8))
+        if coupled:
+            done = np.full(len(active), done.all() or (better.all() and decrease.sum() < tol * len(active)))
+        converged[active] |= done
+    return x, cost, dist, converged, iterations
