@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import os
 import sys
-from types import FrameType
 import warnings
+from types import FrameType
 
 
 class ModelFileError(ValueError):
