@@ -58,6 +58,7 @@ class Camera:
         if center is None:
             raise ValueError("center: the principal point (c_x, c_y) in pixels is needed (often the image centre)")
         c = _finite(center, "center", (2,))
+        rot: np.ndarray
         if rotation is None:
             rot = np.eye(3)
         else:

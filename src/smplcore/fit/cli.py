@@ -139,7 +139,8 @@ def fit_one(source: str, output: str, settings: Any) -> dict[str, Any]:
         key = f"{settings.model_type}:{settings.model_path}:{settings.gender}"
         if key not in _MODEL:
             _MODEL[key] = build_model(settings)
-        arrays, summary = fit_input(source, settings, _MODEL[key])
+        outputs, summary = fit_input(source, settings, _MODEL[key])
+        arrays: dict[str, Any] = outputs  # np.savez's keywords (its stub reserves allow_pickle)
         atomic_write(Path(output), lambda fh: np.savez(fh, **arrays))
         entry.update(status="done", **summary)
     except Exception as exc:  # noqa: BLE001 -- one bad input is reported, never fatal to the batch

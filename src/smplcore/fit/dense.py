@@ -23,6 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 import scipy.sparse as sp
 
 from smplcore.engine import rodrigues, world_transforms
@@ -48,10 +49,10 @@ class DensePoints:
         return self.weights.shape[0]
 
 
-def dense_points(body: FitBody, pts: Points, dtype: type = np.float64) -> DensePoints:
+def dense_points(body: FitBody, pts: Points, dtype: npt.DTypeLike = np.float64) -> DensePoints:
     """The :class:`DensePoints` of ``pts`` in ``dtype`` (cached on ``body``)."""
-    dtype = np.dtype(dtype)
-    key = ("dense", dtype.str, pts.ids.tobytes())
+    dt = np.dtype(dtype)
+    key = ("dense", dt.str, pts.ids.tobytes())
     cached = body._cache.get(key)
     if cached is not None:
         return cached
@@ -61,22 +62,22 @@ def dense_points(body: FitBody, pts: Points, dtype: type = np.float64) -> DenseP
         np.add.at(weights, (np.arange(n), pts.joints[:, m]), pts.weights[:, m])
     blocks = [pts.shape.reshape(3 * n, -1).T]
     has_pose = pts.posedirs is not None
-    if has_pose:
+    if pts.posedirs is not None:
         blocks.append(pts.posedirs.reshape(3 * n, -1).T)
-    basis = np.concatenate(blocks, axis=0).astype(dtype)
+    basis = np.concatenate(blocks, axis=0).astype(dt)
     subtree = np.zeros((num_joints, num_joints))
     for j in range(num_joints):
         subtree[body.tree.chain_to_root(j), j] = 1.0
     arrays = DensePoints(
-        weights=sp.csr_matrix(weights.astype(dtype)),
-        weights_t=sp.csr_matrix(weights.T.astype(dtype)),
-        template=pts.template.reshape(-1, 1).astype(dtype),
+        weights=sp.csr_matrix(weights.astype(dt)),
+        weights_t=sp.csr_matrix(weights.T.astype(dt)),
+        template=pts.template.reshape(-1, 1).astype(dt),
         basis=np.ascontiguousarray(basis),
         basis_t=np.ascontiguousarray(basis.T),
         subtree=subtree,
         num_coeffs=pts.shape.shape[-1],
         has_pose=has_pose,
-        dtype=dtype,
+        dtype=dt,
     )
     if len(body._cache) < 32:
         body._cache[key] = arrays

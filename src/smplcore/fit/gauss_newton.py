@@ -11,6 +11,7 @@ are solved in chunks (independent problems) unless shape coefficients are shared
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 
 from smplcore.fit import dense
 from smplcore.fit.body import FitBody
@@ -34,7 +35,7 @@ _CHUNK_JACOBIAN = 12_000_000
 class _Problem:
     """The objective's constant arrays, in batch-last layout and the working precision."""
 
-    def __init__(self, body: FitBody, obj: Objective, hessian_obj: Objective | None, dtype: type) -> None:
+    def __init__(self, body: FitBody, obj: Objective, hessian_obj: Objective | None, dtype: npt.DTypeLike) -> None:
         self.body, self.obj = body, obj
         self.hobj = hessian_obj if hessian_obj is not None else obj
         self.arrays = dense.dense_points(body, obj.points, dtype)
@@ -120,7 +121,7 @@ def refine(
     state: State,
     *,
     hessian_obj: Objective | None = None,
-    dtype: type = np.float64,
+    dtype: npt.DTypeLike = np.float64,
     max_iter: int = 30,
     tol: float = 1e-8,
     step_tol: float = 1e-7,

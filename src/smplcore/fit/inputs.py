@@ -11,6 +11,7 @@ or an AMASS-style ``.npz`` of another model (converted). The output is what
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -137,15 +138,15 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
                 results.append((rows, fit.fit_keypoints(model, points[f, person[rows]], convention, cam, **extra)))
             labels = {"image_id": np.array([str(array.frames[f]) for f in frame]), "person": person}
             count = len(frame)
-        error = np.full(count, np.nan)  # frames without the person: NaN, not converged, nearest frame's fit
+        error: np.ndarray = np.full(count, np.nan)  # frames without the person: NaN, not converged, nearest frame's fit
         converged = np.zeros(count, bool)
-        params: dict[str, list] = {}
+        parts: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
         for rows, r in results:
             error[rows] = r.reprojection_error
             converged[rows] = r.converged
             for key, value in r.params.items():
-                params.setdefault(key, []).append((rows, np.asarray(value)))
-        params = {k: _gather(v, count) for k, v in params.items()}
+                parts.setdefault(key, []).append((rows, np.asarray(value)))
+        params = {k: _gather(v, count) for k, v in parts.items()}
         fitted = np.concatenate([rows for rows, _ in results])
         if len(fitted) < count:
             nearest = fitted[np.abs(np.arange(count)[:, None] - fitted[None]).argmin(1)]
@@ -153,11 +154,12 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
         betas = params["betas"].mean(0)
     elif kind == "joints":
         joints = np.load(path, allow_pickle=False)
-        names = settings.joint_names
+        names: Sequence[str] | None = settings.joint_names
         weights = None
         if names is None and settings.convention is not None:
             names, weights = _convention_joints(model, settings.convention, joints.shape[1])
         r = fit.fit_joints(model, joints, names, weights, share_betas=True, smoothness=settings.smoothness, **extra)
+        assert r.joint_error is not None  # fit_joints always measures it
         params, error, converged = {k: np.asarray(v) for k, v in r.params.items()}, r.joint_error, r.converged
         betas = params["betas"][0]
     else:
@@ -169,6 +171,7 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
         src = motion.model_params(source_type, list(source.skeleton_joint_names))
         src["betas"] = src["betas"][:, : source.num_betas]
         r = fit.convert(src, source, model, share_betas=True, **extra)
+        assert r.vertex_error is not None  # convert always measures it
         params, error, converged = {k: np.asarray(v) for k, v in r.params.items()}, r.vertex_error, r.converged
         betas = params["betas"][0]
     arrays = _motion_arrays(model, params, betas, settings)

@@ -10,6 +10,7 @@ priors.
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
 import numpy as np
@@ -207,7 +208,7 @@ def fit_keypoints(
     pose_prior: float = 1e-5,
     joint_limits: float = 100.0,
     bending: float = 1.0,
-    gmm: str | GMMPrior | None = None,
+    gmm: str | os.PathLike[str] | GMMPrior | None = None,
     gmm_weight: float = 1e-4,
     smoothness: float = 0.0,
     anneal: tuple[float, ...] = (3.0, 1.0),
@@ -270,7 +271,7 @@ def fit_keypoints(
             f"keypoints: bodies {bad.tolist()[:10]} have {counts[bad].tolist()[:10]} keypoints with confidence "
             f">= {min_confidence} that the model has (need min_points={min_points}); drop them or lower min_points"
         )
-    if isinstance(gmm, (str, bytes)) or hasattr(gmm, "__fspath__"):
+    if isinstance(gmm, (str, os.PathLike)):
         gmm = GMMPrior.load(gmm)
     q, k = body.num_pose, body.num_coeffs
     blocks = {b.name: b for b in body.blocks}
@@ -299,7 +300,7 @@ def fit_keypoints(
         other = state.copy()
         other.pose[:, bp.start : bp.start + bp.width] = _natural_pose(body, bp)
         starts.append(other)
-    best = None
+    best: tuple[State, np.ndarray, np.ndarray] | None = None
     for first in starts:
         state, more = first, 0
         for factor in anneal:
@@ -317,10 +318,11 @@ def fit_keypoints(
         coupled = bool(shared.any() or smoothness) and batch > 1
         better = np.full(batch, cost.sum() < best[1].sum()) if coupled else cost < best[1]
         best = (_where(better, state, best[0]), np.where(better, cost, best[1]), np.where(better, converged, best[2]))
+    assert best is not None  # starts holds at least the placed state
     state, _, converged = best
     dist = reprojection(body, terms, state)
-    used = weights > 0
-    error = (dist * used).sum(1) / used.sum(1)
+    visible = weights > 0
+    error = (dist * visible).sum(1) / visible.sum(1)
     return FitResult(
         params=state_to_params(body, model, state),
         reprojection_error=error,

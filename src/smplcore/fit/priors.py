@@ -26,6 +26,7 @@ with 21 body joints (SMPL+H, SMPL-X) the first 63 values are used (the Gaussians
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -154,7 +155,7 @@ class GMMPrior:
         return cls(means, chol, -np.log(weights / weights.sum()) + 0.5 * logdet, source)
 
     @classmethod
-    def load(cls, path: str | Path) -> GMMPrior:
+    def load(cls, path: str | os.PathLike[str]) -> GMMPrior:
         """Read ``gmm_08.pkl`` (a pickled dict with ``means``, ``covars``, ``weights``) through smplcore's
         allow-list unpickler (nothing in the file is run)."""
         from smplcore.io import safe_load

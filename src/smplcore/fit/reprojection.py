@@ -85,6 +85,7 @@ def keypoints_3d(body: FitBody, kmap: KeypointMap, state: State, jacobian: bool 
         return pts, None
     nj3 = 3 * body.num_joints
     jac = lin.jacobian
+    assert jac is not None  # pose_points was asked for it
     if body.pose_map is not None:
         jac = np.concatenate([jac[..., :nj3] @ body.pose_map.T, jac[..., nj3:]], axis=-1)
     batch, n, _, width = jac.shape
