@@ -198,12 +198,12 @@ def evaluate(
     if chosen == "reference":
         verts, joints = _reference_forward(setup, source, coeffs, rotmats, zeros)
     elif operators:
-        verts, joints = _operator_forward(setup, source, coeffs, rotmats, vertices, chosen == "autograd", zeros)
+        verts, joints = _operator_forward(setup, source, coeffs, rotmats, vertices, transl, chosen == "autograd", zeros)
     else:
         verts, joints = _fast_forward(setup, source.fast_arrays(), coeffs, rotmats, vertices, transl, chosen)
     if transl is not None:
         shifted = joints + transl[:, None]
-        if (chosen == "reference" or operators) and verts is not None:
+        if chosen == "reference":
             verts = verts + transl[:, None]
     else:
         shifted = joints
@@ -263,10 +263,18 @@ def _reference_forward(setup: ModelSetup, source: ArraySource, coeffs: Any, rotm
 
 
 def _operator_forward(
-    setup: ModelSetup, source: ArraySource, coeffs: Any, rotmats: Any, vertices: bool, gradients: bool, like: Any
+    setup: ModelSetup,
+    source: ArraySource,
+    coeffs: Any,
+    rotmats: Any,
+    vertices: bool,
+    transl: Any | None,
+    gradients: bool,
+    like: Any,
 ) -> tuple:
-    """Vertices (untranslated; None when not asked for and no keypoint needs them) and all output joints by
-    the fast kernels as torch custom operators (:mod:`smplcore.engine.kernels.ops`), under ``torch.compile``."""
+    """Vertices (translated; None when not asked for and no keypoint needs them) and all output joints
+    (untranslated) by the fast kernels as torch custom operators (:mod:`smplcore.engine.kernels.ops`), under
+    ``torch.compile``."""
     from smplcore.engine.kernels import ops
 
     mesh = vertices or setup.keypoints.extra.size or setup.spec.landmarks or setup.regressor is not None
@@ -274,8 +282,12 @@ def _operator_forward(
     assert handle is not None  # evaluate() runs the reference kernel for sources without one
     if not mesh:
         return None, ops.joints(handle, arrays, coeffs, rotmats)
-    verts, joints = ops.forward(handle, arrays, coeffs, rotmats, translation=None, gradients=gradients)
-    return verts, _with_mesh_keypoints(setup, source, joints, verts, rotmats, like)
+    verts, joints = ops.forward(handle, arrays, coeffs, rotmats, translation=transl, gradients=gradients)
+    if transl is None or not (setup.keypoints.extra.size or setup.spec.landmarks or setup.regressor is not None):
+        return verts, _with_mesh_keypoints(setup, source, joints, verts, rotmats, like)
+    keypoints = _with_mesh_keypoints(setup, source, joints, verts, rotmats, like)  # translated but the joints
+    untranslated = namespace(joints).concat([joints, keypoints[:, joints.shape[1] :] - transl[:, None]], axis=1)
+    return verts, untranslated
 
 
 def _with_mesh_keypoints(

@@ -212,16 +212,26 @@ _skin.register_autograd(_skin_backward_rule, setup_context=_skin_setup)
 
 
 def _skeleton(handle: int, arrays: engine.BodyArrays, coeffs: torch.Tensor, rotmats: torch.Tensor) -> tuple:
-    """(B, 1 + K) ``[1, coeffs]``, (B, J, 3) posed joints and (B, J, 12) skinning transforms (depth order)."""
+    """(B, 1 + K) ``[1, coeffs]``, (B, J, 3) posed joints and (B, J, 12) skinning transforms (depth order).
+
+    The chain runs level by level as :func:`smplcore.engine.skeleton.chain` does, indexed by the tree's
+    plain tuples (constants to the compiler)."""
     tree = arrays.tree
-    num_joints = len(tree.parents)
+    batch, num_joints = coeffs.shape[0], len(tree.parents)
     with_one = torch.cat([torch.ones_like(coeffs[:, :1]), coeffs], dim=1)
-    both = (with_one @ _joint_basis(handle, coeffs.detach())).reshape(coeffs.shape[0], 2, num_joints, 3)
-    rest_joints = both[:, 0][:, list(tree.order_inverse)]  # model order
-    joints, relative = reference.kinematic_chain(rotmats, rest_joints, tree.parents)
-    top = relative[:, list(tree.order), :3]  # (B, J, 3, 4) in depth order, the rows of weights_t
-    transforms = torch.cat([top[..., :3].reshape(coeffs.shape[0], num_joints, 9), top[..., 3]], dim=-1)
-    return with_one, joints, transforms
+    both = (with_one @ _joint_basis(handle, coeffs.detach())).reshape(batch, 2, num_joints, 3)
+    rest, offsets = both[:, 0], both[:, 1]  # depth order
+    local = rotmats[:, list(tree.order)]
+    start, stop = tree.level_bounds[0]
+    level_rot, level_pos = [local[:, start:stop]], [offsets[:, start:stop]]
+    for (start, stop), slots in zip(tree.level_bounds[1:], tree.parent_slots):
+        parent_rot = level_rot[-1][:, list(slots)]
+        level_rot.append(parent_rot @ local[:, start:stop])
+        level_pos.append((parent_rot @ offsets[:, start:stop, :, None])[..., 0] + level_pos[-1][:, list(slots)])
+    world_rot, world_pos = torch.cat(level_rot, dim=1), torch.cat(level_pos, dim=1)
+    translation = world_pos - (world_rot @ rest[..., None])[..., 0]
+    transforms = torch.cat([world_rot.reshape(batch, num_joints, 9), translation], dim=-1)
+    return with_one, world_pos[:, list(tree.order_inverse)], transforms
 
 
 def joints(handle: int, arrays: engine.BodyArrays, coeffs: torch.Tensor, rotmats: torch.Tensor) -> torch.Tensor:
