@@ -234,7 +234,7 @@ def _reference_forward(setup: ModelSetup, source: ArraySource, coeffs: Any, rotm
     """Vertices (untranslated) and all output joints by the plain forward of :mod:`smplcore.engine.reference`."""
     p = source.plain_arrays()
     verts, joints, _ = reference.forward(
-        p.v_template, p.shapedirs, p.posedirs, p.J_regressor, p.parents, p.weights, coeffs, rotmats
+        p.v_template, p.shapedirs, p.posedirs, p.J_regressor, p.parents, p.weights, coeffs, rotmats, setup.skinning
     )
     parts = [joints]
     if setup.keypoints.extra.size:
@@ -267,7 +267,7 @@ def _fast_forward(
 ) -> tuple:
     """Vertices (translated) and output joints (untranslated) by the blocked or autograd kernels."""
     verts, joints, transforms = engine.forward(
-        coeffs, rotmats, arrays, vertices=vertices, translation=transl, kernel=kernel
+        coeffs, rotmats, arrays, vertices=vertices, translation=transl, kernel=kernel, skinning=setup.skinning
     )
     parts = [joints]
     if setup.keypoints.ids.size:
@@ -292,7 +292,7 @@ def _posed_subset(
     """(B, n, 3) untranslated posed vertices ``ids``: read from the mesh when there is one; posed alone for a
     joints-only call, or under autograd (where a gather from the mesh back-propagates a mesh-sized gradient)."""
     if verts is None or kernel == "autograd":
-        return engine.posed_vertex_subset(coeffs, rotmats, transforms, arrays, ids, kernel)
+        return engine.posed_vertex_subset(coeffs, rotmats, transforms, arrays, ids, kernel, setup.skinning)
     subset = verts[:, setup.const(key, ids, verts)]
     return subset if transl is None else subset - transl[:, None]
 

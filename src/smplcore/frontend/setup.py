@@ -36,7 +36,11 @@ SETUP_OPTIONS: dict[str, Any] = {
     "kid_template_path": "",
     "v_template": None,
     "joint_regressors": None,
+    "skinning": "lbs",
 }
+
+#: The skinning methods of the ``skinning`` option: linear blend and dual-quaternion skinning.
+SKINNING_METHODS = ("lbs", "dqs")
 
 
 def warn_once(owner: str, message: str, key: str | None = None) -> None:
@@ -61,6 +65,7 @@ class ModelSetup:
     pose_mean : (3 J,) axis-angle added to the full pose (the mean hand pose unless flat).
     extra_joint_ids / extra_joint_names : vertices appended to the joints.
     use_face_contour : append the 17 dynamic contour landmarks.
+    skinning : ``"lbs"`` (linear blend skinning, the models' own) or ``"dqs"`` (dual-quaternion skinning).
     """
 
     spec: FamilySpec
@@ -81,6 +86,7 @@ class ModelSetup:
     neck_chain: list[int] = field(default_factory=list)
     keypoints: Keypoints | None = None
     regressor: Any = None  # smplcore.keypoints.Regressor of the joint_regressors option, or None
+    skinning: str = "lbs"
     _cache: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -126,9 +132,11 @@ class ModelSetup:
         kid_template_path: str | Path | None = None,
         v_template: np.ndarray | None = None,
         joint_regressors: Any = None,
+        skinning: str = "lbs",
         owner: str = "",
     ) -> ModelSetup:
         spec = get_spec(data.model_type)
+        check_skinning(skinning)
         owner = owner or spec.display_name
         _check_count("num_betas", num_betas)
         if num_betas > data.num_betas:
@@ -240,6 +248,7 @@ class ModelSetup:
             use_face_contour,
             neck_chain,
             regressor=_regressor(joint_regressors, data),
+            skinning=skinning,
         )
 
     def body_arrays(self, convert=np.asarray) -> engine.BodyArrays:
@@ -272,6 +281,15 @@ class ModelSetup:
     def pca_blocks(self) -> frozenset[str]:
         """The pose blocks given as hand-PCA coefficients."""
         return self._cache["pca_blocks"]
+
+
+def check_skinning(skinning: Any) -> str:
+    """``skinning`` if it names a skinning method, else a ValueError naming the option and the choices."""
+    if skinning not in SKINNING_METHODS:
+        raise ValueError(
+            f"skinning: expected 'lbs' (linear blend skinning) or 'dqs' (dual-quaternion skinning), got {skinning!r}"
+        )
+    return skinning
 
 
 def _regressor(joint_regressors: Any, data: ModelData) -> Any:

@@ -70,6 +70,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     m.add_argument("--ext", choices=("npz", "pkl"), default=None, help="model file extension (default: npz, then pkl)")
     m.add_argument("--num-betas", type=_count, default=None, help="shape coefficients used (default: all)")
+    m.add_argument(
+        "--skinning",
+        choices=("lbs", "dqs"),
+        default=None,
+        help="lbs: linear blend skinning (default); dqs: dual-quaternion skinning, for the vertices and "
+        "extra vertex joints (see docs/skinning.md)",
+    )
     o = p.add_argument_group("what to write")
     o.add_argument(
         "--recipe",
@@ -179,6 +186,7 @@ def run_process(args: argparse.Namespace) -> int:
         compress=args.compress,
         backend=args.backend,
         chunk=args.batch_frames or None,
+        skinning=args.skinning,
     )
     with warnings.catch_warnings():
         warnings.simplefilter("always", OutputSizeWarning)

@@ -48,6 +48,8 @@ class ProcessOptions:
     backend : ``auto`` (NumPy, the fastest on a CPU), ``numpy`` or ``torch``.
     chunk : frames per forward call (None: the backend's best, see
         :class:`~smplcore.motion.models.Evaluator`).
+    skinning : ``lbs`` (linear blend skinning, the default) or ``dqs`` (dual-quaternion skinning) for the
+        vertices and the extra vertex joints (the skeleton joints are the same under both).
     """
 
     model_path: str | None = None
@@ -66,6 +68,7 @@ class ProcessOptions:
     compress: bool = False
     backend: str = "auto"
     chunk: int | None = None
+    skinning: str = "lbs"
 
     def __post_init__(self) -> None:
         from smplcore.family.specs import get_spec
@@ -97,6 +100,9 @@ class ProcessOptions:
         if self.chunk is not None and self.chunk < 1:
             raise ValueError(f"chunk: expected a positive number of frames, got {self.chunk}")
         parse_axes(self.axes)
+        from smplcore.frontend.setup import check_skinning
+
+        check_skinning(self.skinning)
 
     @property
     def suffix(self) -> str:
@@ -107,6 +113,8 @@ class ProcessOptions:
         out = asdict(self)
         for name in ("backend", "chunk"):  # how, not what
             out.pop(name)
+        if out["skinning"] == "lbs":  # the default, absent from manifests written before the option
+            out.pop("skinning")
         return out
 
 

@@ -87,6 +87,7 @@ class WorkerState:
             backend=options.backend,
             dtype=dtype,
             vertices=options.vertices,
+            skinning=options.skinning,
         )
         return cls(options, cache, Evaluator(chunk=options.chunk))
 
