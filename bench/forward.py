@@ -934,9 +934,10 @@ def evaluate_targets(groups: list[Group], infos: dict, memory: dict, args) -> li
     core = "smplcore-torch"
 
     def add(target, model, value, ok, fmt):
-        res = "—" if value is None or not math.isfinite(value) else ("PASS" if ok(value) else "FAIL")
-        if ok is None and res != "—":
-            res = "info"
+        if value is None or not math.isfinite(value):
+            res = "—"
+        else:
+            res = "info" if ok is None else ("PASS" if ok(value) else "FAIL")
         out.append(
             {
                 "target": target,
