@@ -583,6 +583,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         help="add smplcore-torch-compiled and smplx-compiled "
         "(torch.compile, Inductor); compilation happens in the warm-up calls",
     )
+    ap.add_argument(
+        "--dqs",
+        action="store_true",
+        help="add smplcore-torch-dqs and smplcore-numpy-dqs (skinning='dqs') and their time vs our LBS",
+    )
     ap.add_argument("--threads", type=int, default=None, help="torch.set_num_threads(N) (default: torch's own)")
     ap.add_argument("--no-memory", action="store_true", help="skip the peak-memory subprocesses")
     ap.add_argument("--memory-batch", type=int, default=512)
@@ -634,6 +639,8 @@ def main(argv: list[str] | None = None) -> int:
         peers.DEVICE = args.device
     if args.compile:
         peers.CONTENDERS.update(peers.COMPILED)
+    if args.dqs:
+        peers.CONTENDERS.update(peers.DQS)
 
     t_start = time.perf_counter()
     if args.threads:
@@ -657,6 +664,8 @@ def main(argv: list[str] | None = None) -> int:
     names = [c for c in (args.contenders or ",".join(QUICK_CONTENDERS if quick else peers.CONTENDERS)).split(",") if c]
     if args.compile and not args.contenders:
         names += [c for c in peers.COMPILED if c not in names]
+    if args.dqs and not args.contenders:
+        names += [c for c in peers.DQS if c not in names]
     if peers.DEVICE != "cpu":  # NumPy contenders have no device
         names = [c for c in names if peers.CONTENDERS[c].kind == "torch"]
     for c in names:
@@ -915,12 +924,20 @@ def gemm_limit(group: Group | None) -> float:
     return ref.median / min(best) if ref is not None and best else float("nan")
 
 
+def fwd_batches(groups: list[Group], model: str) -> list[int]:
+    """The forward batch sizes timed for ``model``."""
+    return sorted({g.batch for g in groups if g.model == model and g.mode == "fwd"})
+
+
 def evaluate_targets(groups: list[Group], infos: dict, memory: dict, args) -> list[dict]:
     out = []
     core = "smplcore-torch"
 
     def add(target, model, value, ok, fmt):
-        res = "—" if value is None or not math.isfinite(value) else ("PASS" if ok(value) else "FAIL")
+        if value is None or not math.isfinite(value):
+            res = "—"
+        else:
+            res = "info" if ok is None else ("PASS" if ok(value) else "FAIL")
         out.append(
             {
                 "target": target,
@@ -929,6 +946,26 @@ def evaluate_targets(groups: list[Group], infos: dict, memory: dict, args) -> li
                 "result": res,
                 "value": value,
             }
+        )
+
+    for model in infos if args.dqs else ():  # dual-quaternion skinning against our LBS: time(DQS) / time(LBS)
+        for kernel_name, dqs_name in ((core, "smplcore-torch-dqs"), ("smplcore-numpy", "smplcore-numpy-dqs")):
+            for batch in fwd_batches(groups, model):
+                g = _group(groups, model, "fwd", batch)
+                add(
+                    f"{dqs_name} forward B={batch} ≤ 1.5× {kernel_name}'s time",
+                    model,
+                    ratio_to(g, kernel_name, dqs_name) if g else None,
+                    lambda v: v <= 1.5,
+                    lambda v: f"{v:.2f}×",
+                )
+        g = _group(groups, model, "fwdbwd", 64)
+        add(
+            "smplcore-torch-dqs forward+backward B=64 vs smplcore-torch's time",
+            model,
+            ratio_to(g, core, "smplcore-torch-dqs") if g else None,
+            None,
+            lambda v: f"{v:.2f}×",
         )
 
     big = 512

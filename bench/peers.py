@@ -167,12 +167,13 @@ def _smplx_style_options(info: ModelInfo) -> dict:
 class SmplcoreTorch(Contender):
     name, kind, library = "smplcore-torch", "torch", "smplcore"
     joints_note = "return_verts=False (skeleton + extra vertex joints, no mesh)"
+    skinning = "lbs"
 
     def __init__(self, info, files):
         super().__init__(info, files)
         import smplcore
 
-        opts = _smplx_style_options(info)
+        opts = {**_smplx_style_options(info), "skinning": self.skinning}
         if info.key == "open":
             self.model = smplcore.create(model_type="open", create_transl=False, **opts)
         else:
@@ -206,12 +207,13 @@ class SmplcoreTorch(Contender):
 class SmplcoreNumpy(Contender):
     name, kind, library, grad = "smplcore-numpy", "numpy", "smplcore", False
     joints_note = "return_verts=False (skeleton + extra vertex joints, no mesh)"
+    skinning = "lbs"
 
     def __init__(self, info, files):
         super().__init__(info, files)
         import smplcore
 
-        opts = _smplx_style_options(info)
+        opts = {**_smplx_style_options(info), "skinning": self.skinning}
         if info.key == "open":
             self.model = smplcore.BodyModel(model_type="open", dtype=np.float32, **opts)
         else:
@@ -418,6 +420,19 @@ class SmplxCompiled(_Compiled, Smplx):
     name = "smplx-compiled"
     joints_note = Smplx.joints_note + ", torch.compile"
 
+
+class SmplcoreTorchDqs(SmplcoreTorch):
+    name, skinning = "smplcore-torch-dqs", "dqs"
+    joints_note = SmplcoreTorch.joints_note + ", skinning='dqs'"
+
+
+class SmplcoreNumpyDqs(SmplcoreNumpy):
+    name, skinning = "smplcore-numpy-dqs", "dqs"
+    joints_note = SmplcoreNumpy.joints_note + ", skinning='dqs'"
+
+
+#: Contenders added by ``bench/forward.py --dqs``: smplcore with dual-quaternion skinning.
+DQS = {c.name: c for c in (SmplcoreTorchDqs, SmplcoreNumpyDqs)}
 
 #: Contenders added by ``bench/forward.py --compile``.
 COMPILED = {c.name: c for c in (SmplcoreTorchCompiled, SmplxCompiled)}

@@ -26,6 +26,7 @@ def oracle(
     flat_hand_mean: bool = False,
     use_face_contour: bool = False,
     rotation_matrices: bool = False,
+    skinning: str = "lbs",
 ) -> tuple[np.ndarray, np.ndarray]:
     """(B, V, 3) vertices and (B, J', 3) output joints (skeleton, extra vertex joints, landmarks), translated."""
     spec = get_spec(data.model_type)
@@ -77,6 +78,7 @@ def oracle(
         np.asarray(data.weights, np.float64),
         np.concatenate(coeffs, axis=1),
         rotmats,
+        skinning,
     )
     parts = [joints]
     if spec.extra_joints:

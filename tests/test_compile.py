@@ -188,3 +188,14 @@ def test_a_compiled_joints_only_call_is_exact(fake_models, model_type):
         compiled = torch.compile(model, fullgraph=True, backend="aot_eager")
         a, b = compiled(**params, return_verts=False), model(**params, return_verts=False)
     assert (a.joints - b.joints).abs().max() < 1e-5
+
+
+def test_dual_quaternion_skinning_compiles_exactly_through_the_plain_pass(fake_models):
+    model = _model(fake_models, "smpl", skinning="dqs")
+    params = _inputs(model, 2)
+    with torch.no_grad():
+        assert not _recorded_ops(model, params)
+        torch._dynamo.reset()
+        compiled = torch.compile(model, fullgraph=True, backend="aot_eager")
+        a, b = compiled(**params), model(**params)
+    assert (a.vertices - b.vertices).abs().max() < 1e-5 and (a.joints - b.joints).abs().max() < 1e-5

@@ -51,6 +51,8 @@ class BodyModel:
         :mod:`smplcore.engine.reference`); see :mod:`smplcore.engine.kernels`.
     check_finite : refuse NaN / inf inputs with an error naming the argument (default True).
     check_rotations : with ``pose2rot=False``, refuse matrices that are not rotations (default True).
+    skinning : ``"lbs"`` (default: linear blend skinning, what the models were built for) or ``"dqs"``
+        (dual-quaternion skinning: no candy-wrapper collapse under twists); see docs/skinning.md.
     uv_path : a UV map ``.obj`` for the model's mesh (as SMPL distributes it); files that carry ``vt``/``ft``
         (SMPL-X, the open model) need none.
     dmpl_path : a DMPL file (``dmpl.npz`` with ``eigvec`` (V, 3, n), as AMASS ships it) for any model of
@@ -94,6 +96,7 @@ class BodyModel:
             raise ValueError(f"dtype: expected float32 or float64, got {self.dtype}")
         self.setup = ModelSetup.build(data, owner="BodyModel", **{k: v for k, v in options.items() if k in known})
         self.kernel = check_kernel(kernel)
+        self.skinning = self.setup.skinning
         self.check_finite, self.check_rotations = bool(check_finite), bool(check_rotations)
         self.source = SetupArrays(self.setup, lambda a: np.ascontiguousarray(a, dtype=self.dtype))
         self.faces = np.asarray(data.faces)

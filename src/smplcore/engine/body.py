@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from smplcore.engine.backend import array_identity, for_cache, from_numpy, host_numpy, index, is_torch, namespace
-from smplcore.engine.kernels import blocked, gemm
+from smplcore.engine.kernels import blocked, dqs, gemm
 from smplcore.engine.kernels.blocked import vertex_columns
 from smplcore.engine.rotations import pose_features
 from smplcore.engine.skeleton import (
@@ -121,6 +121,17 @@ class BodyArrays:
 
         return self.derived(("subset", np.asarray(ids).tobytes()), make)
 
+    def dqs_blocks(self, size: int, ids: np.ndarray | None = None) -> tuple:
+        """Dual-quaternion skinning's vertex blocks, pair blocks and pairs (:mod:`dqs`), for the whole mesh
+        (blocks of ``size`` vertices) or the vertices ``ids`` only (one block); cached."""
+        if ids is None:
+            key, weights_t, blocks = None, self.weights_t, self.vertex_blocks(size)
+        else:
+            key = np.asarray(ids).tobytes()
+            _, weights_t, blocks = self.vertex_subset(ids)
+        pairs = self.derived(("dqs pairs", key), lambda: dqs.pairs(weights_t, self.tree.order))
+        return blocks, self.derived(("dqs pair blocks", key, size), lambda: dqs.pair_blocks(pairs, blocks)), pairs
+
     def packed_blend(self) -> tuple[Any, Any] | None:
         """The blend basis and its transpose packed for :func:`gemm.product_with_gradients` (cached);
         None where :mod:`~smplcore.engine.gemm` does not pack."""
@@ -196,6 +207,7 @@ def forward(
     vertices: bool = True,
     translation: Any = None,
     kernel: str = "blocked",
+    skinning: str = "lbs",
 ) -> tuple[Any | None, Any, Any]:
     """Posed body.
 
@@ -206,6 +218,8 @@ def forward(
     arrays : the model.
     vertices : build the mesh (False: joints only).
     translation : (B, 3) added to the vertices (not to the joints or transforms), or None.
+    kernel : ``"blocked"`` (no autograd graph) or ``"autograd"`` (torch).
+    skinning : ``"lbs"`` or ``"dqs"`` (dual-quaternion skinning, :mod:`smplcore.engine.kernels.dqs`).
 
     Returns
     -------
@@ -231,17 +245,25 @@ def forward(
         translation,
         kernel,
         arrays.packed_blend,
+        (arrays.dqs_blocks, arrays.tree) if skinning == "dqs" else None,
     )
     return verts, posed_joints, transforms
 
 
 def posed_vertex_subset(
-    coeffs: Any, rotmats: Any, transforms: Any, arrays: BodyArrays, ids: np.ndarray, kernel: str = "blocked"
+    coeffs: Any,
+    rotmats: Any,
+    transforms: Any,
+    arrays: BodyArrays,
+    ids: np.ndarray,
+    kernel: str = "blocked",
+    skinning: str = "lbs",
 ) -> Any:
     """(B, n, 3) posed vertices ``ids`` only (untranslated), from :func:`forward`'s ``transforms``."""
     basis, weights_t, blocks = arrays.vertex_subset(ids)
     feats = blend_features(coeffs, rotmats, arrays)
-    return _skin_from_basis(feats, transforms, basis, weights_t, lambda size: blocks, None, kernel)
+    dq = ((lambda size: arrays.dqs_blocks(size, ids)), arrays.tree) if skinning == "dqs" else None
+    return _skin_from_basis(feats, transforms, basis, weights_t, lambda size: blocks, None, kernel, None, dq)
 
 
 # Vertices per block under autograd: small enough that a block uses a handful of joints; up to
@@ -259,11 +281,15 @@ def _skin_from_basis(
     translation: Any,
     kernel: str,
     packed_blend: Callable[[], Any] | None = None,
+    dqs_blocks: tuple[Callable[[int], Any], KinematicTree] | None = None,
 ) -> Any:
     """Blend ``feats @ basis`` and skin it: vertex-blocked (kernel ``blocked``, no autograd graph), or
     with one autograd node for the skinning (kernel ``autograd``, torch). ``blocks(size)`` gives the
     vertex blocks of about ``size`` vertices; ``packed_blend()`` the basis packed for
-    :func:`gemm.product_with_gradients` (or None)."""
+    :func:`gemm.product_with_gradients` (or None). With ``dqs_blocks`` (``size`` → the blocks and pairs of
+    :meth:`BodyArrays.dqs_blocks`, and the tree), dual-quaternion skinning instead (:mod:`dqs`)."""
+    if dqs_blocks is not None:
+        return _dqs_from_basis(feats, transforms, basis, translation, kernel, packed_blend, *dqs_blocks)
     transforms = with_translation(transforms, translation)
     if kernel == "blocked":
         size = blocked.block_size(feats.shape[0], weights_t.shape[1])
@@ -279,3 +305,41 @@ def _skin_from_basis(
 
     few = feats.shape[0] <= _GRAD_FEW_BODIES  # per-op overhead dominates: one block
     return skin_with_gradients(v, transforms, blocks(weights_t.shape[1] if few else _GRAD_BLOCK))
+
+
+def _dqs_from_basis(
+    feats: Any,
+    transforms: Any,
+    basis: Any,
+    translation: Any,
+    kernel: str,
+    packed_blend: Callable[[], Any] | None,
+    dqs_blocks: Callable[[int], Any],
+    tree: KinematicTree,
+) -> Any:
+    """Dual-quaternion skinning of ``feats @ basis`` (block by block where the blocks hold their packed
+    basis columns, else one product for the whole rest mesh); ``translation`` added after."""
+    batch, num_verts = feats.shape[0], basis.shape[1] // 3
+    if kernel == "blocked":
+        size = blocked.block_size(batch, num_verts)
+    else:
+        size = num_verts if batch <= _GRAD_FEW_BODIES else _GRAD_BLOCK
+    blocks, pblocks, pairs = dqs_blocks(size)
+    rest = None
+    full_rows = feats.shape[1] == basis.shape[0]
+    if kernel != "blocked" or not full_rows or any(b.packed_blend is None for b in blocks):
+        trainable = getattr(basis, "requires_grad", False)
+        packed = packed_blend() if packed_blend is not None and full_rows and not trainable else None
+        if packed is None:
+            rest = _blend(feats, basis)
+        elif kernel == "blocked":
+            rest = gemm.product(feats, packed[0]).view(batch, 3, -1)
+        else:
+            rest = gemm.product_with_gradients(feats, *packed).view(batch, 3, -1)
+    verts = dqs.skin(rest, transforms, blocks, pblocks, pairs, tree, feats)
+    if translation is None:
+        return verts
+    if kernel == "blocked":  # our own buffer, no graph: in place (a new mesh-sized array costs page faults)
+        verts += translation[:, None]
+        return verts
+    return verts + translation[:, None]

@@ -93,6 +93,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--frame", type=int, default=0, help=".obj/.ply: the frame to write (default: 0)")
     parser.add_argument(
+        "--skinning",
+        choices=("lbs", "dqs"),
+        default="lbs",
+        help=".obj/.ply: lbs (linear blend skinning, default) or dqs (dual-quaternion skinning) for the posed "
+        "mesh; a .glb rig is always skinned by LBS in viewers (glTF has no DQS), see docs/skinning.md",
+    )
+    parser.add_argument(
         "--colors",
         choices=("none", "weights"),
         default="none",
@@ -198,6 +205,7 @@ def _build_model(args: argparse.Namespace, source: Any) -> Any:
             options.pop("num_pca_comps", None)
     if getattr(args, "dmpl", None):
         options["dmpl_path"] = args.dmpl
+    options["skinning"] = getattr(args, "skinning", "lbs")
     if args.model_path is None and args.model_type in (None, "open"):
         return BodyModel(model_type="open", **options)
     ext = getattr(args, "ext", None)
@@ -248,6 +256,15 @@ def run(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         model = _build_model(args, source)
+        if model.skinning == "dqs" and suffix == ".glb":
+            warnings.warn(
+                "--skinning dqs: glTF skins are linear blend skinning, so the .glb rig holds the LBS weights "
+                "and viewers pose it by LBS; for dual-quaternion-skinned vertices write .obj/.ply frames or "
+                "use 'smplcore process --vertices --skinning dqs'",
+                stacklevel=2,
+            )
+        elif model.skinning == "dqs" and suffix == ".bvh":
+            warnings.warn("--skinning dqs: a .bvh holds the skeleton only; skinning does not change it", stacklevel=2)
         if suffix in (".obj", ".ply"):
             message = _write_mesh(args, model, source, out, save_mesh, weight_colors)
             report_warnings: list[str] = []

@@ -148,7 +148,8 @@ def evaluate(
     zeros = source.constant("zero", ref)  # (1, 1) in the model's dtype and device
     chosen = select(kernel, zeros, gradients=_records(given.values()), trainable_model=source.trainable())
     operators = chosen != "reference" and traced()  # under torch.compile: the kernels as custom operators
-    if operators and source.handle is None:  # arrays the operators do not know: the plain pass (same numbers)
+    # arrays the operators do not know, or dual-quaternion skinning (no operator): the plain pass (same numbers)
+    if operators and (source.handle is None or setup.skinning != "lbs"):
         chosen, operators = "reference", False
 
     def coefficients(name: str, width: int) -> Any:
@@ -257,7 +258,7 @@ def _reference_forward(setup: ModelSetup, source: ArraySource, coeffs: Any, rotm
     """Vertices (untranslated) and all output joints by the plain forward of :mod:`smplcore.engine.reference`."""
     p = source.plain_arrays()
     verts, joints, _ = reference.forward(
-        p.v_template, p.shapedirs, p.posedirs, p.J_regressor, p.parents, p.weights, coeffs, rotmats
+        p.v_template, p.shapedirs, p.posedirs, p.J_regressor, p.parents, p.weights, coeffs, rotmats, setup.skinning
     )
     return verts, _with_mesh_keypoints(setup, source, joints, verts, rotmats, like)
 
@@ -325,7 +326,7 @@ def _fast_forward(
 ) -> tuple:
     """Vertices (translated) and output joints (untranslated) by the blocked or autograd kernels."""
     verts, joints, transforms = engine.forward(
-        coeffs, rotmats, arrays, vertices=vertices, translation=transl, kernel=kernel
+        coeffs, rotmats, arrays, vertices=vertices, translation=transl, kernel=kernel, skinning=setup.skinning
     )
     parts = [joints]
     if setup.keypoints.ids.size:
@@ -350,7 +351,7 @@ def _posed_subset(
     """(B, n, 3) untranslated posed vertices ``ids``: read from the mesh when there is one; posed alone for a
     joints-only call, or under autograd (where a gather from the mesh back-propagates a mesh-sized gradient)."""
     if verts is None or kernel == "autograd":
-        return engine.posed_vertex_subset(coeffs, rotmats, transforms, arrays, ids, kernel)
+        return engine.posed_vertex_subset(coeffs, rotmats, transforms, arrays, ids, kernel, setup.skinning)
     subset = verts[:, setup.const(key, ids, verts)]
     return subset if transl is None else subset - transl[:, None]
 

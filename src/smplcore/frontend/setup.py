@@ -36,7 +36,11 @@ SETUP_OPTIONS: dict[str, Any] = {
     "v_template": None,
     "joint_regressors": None,
     "dmpl_path": None,
+    "skinning": "lbs",
 }
+
+#: The skinning methods of the ``skinning`` option: linear blend and dual-quaternion skinning.
+SKINNING_METHODS = ("lbs", "dqs")
 
 
 def warn_once(owner: str, message: str, key: str | None = None) -> None:
@@ -62,6 +66,7 @@ class ModelSetup:
     extra_joint_ids / extra_joint_names : vertices appended to the joints.
     use_face_contour : append the 17 dynamic contour landmarks.
     dmpldirs : (V, 3, num_dmpls) DMPL soft-tissue blend shapes (``dmpl_path``), or None.
+    skinning : ``"lbs"`` (linear blend skinning, the models' own) or ``"dqs"`` (dual-quaternion skinning).
     """
 
     spec: FamilySpec
@@ -84,6 +89,7 @@ class ModelSetup:
     keypoints: Keypoints = None  # type: ignore[assignment]
     regressor: Any = None  # smplcore.keypoints.Regressor of the joint_regressors option, or None
     dmpldirs: np.ndarray | None = None
+    skinning: str = "lbs"
     _cache: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -132,9 +138,11 @@ class ModelSetup:
         v_template: np.ndarray | None = None,
         joint_regressors: Any = None,
         dmpl_path: str | Path | None = None,
+        skinning: str = "lbs",
         owner: str = "",
     ) -> ModelSetup:
         spec = get_spec(data.model_type)
+        check_skinning(skinning)
         owner = owner or spec.display_name
         _check_count("num_betas", num_betas)
         if num_betas > data.num_betas:
@@ -249,6 +257,7 @@ class ModelSetup:
             neck_chain,
             regressor=_regressor(joint_regressors, data),
             dmpldirs=_dmpl(dmpl_path, data),
+            skinning=skinning,
         )
 
     @property
@@ -292,6 +301,15 @@ class ModelSetup:
     def pca_blocks(self) -> frozenset[str]:
         """The pose blocks given as hand-PCA coefficients."""
         return self._cache["pca_blocks"]
+
+
+def check_skinning(skinning: Any) -> str:
+    """``skinning`` if it names a skinning method, else a ValueError naming the option and the choices."""
+    if skinning not in SKINNING_METHODS:
+        raise ValueError(
+            f"skinning: expected 'lbs' (linear blend skinning) or 'dqs' (dual-quaternion skinning), got {skinning!r}"
+        )
+    return skinning
 
 
 def _regressor(joint_regressors: Any, data: ModelData) -> Any:

@@ -76,6 +76,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         metavar="FILE",
         help="DMPL soft-tissue blend shapes (dmpl.npz, as AMASS ships them): each sequence's dmpls drive them",
     )
+    m.add_argument(
+        "--skinning",
+        choices=("lbs", "dqs"),
+        default=None,
+        help="lbs: linear blend skinning (default); dqs: dual-quaternion skinning, for the vertices and "
+        "extra vertex joints (see docs/skinning.md)",
+    )
     o = p.add_argument_group("what to write")
     o.add_argument(
         "--recipe",
@@ -190,6 +197,7 @@ def run_process(args: argparse.Namespace) -> int:
         backend=args.backend,
         chunk=args.batch_frames or None,
         dmpl_path=args.dmpl,
+        skinning=args.skinning,
     )
     with warnings.catch_warnings():
         warnings.simplefilter("always", OutputSizeWarning)

@@ -120,6 +120,7 @@ class ModelCache:
     dtype: Any = np.float32
     vertices: bool = False  # what the models will mostly compute (for backend "auto")
     dmpl_path: str | Path | None = None  # DMPL blend shapes for every model (see BodyModel's dmpl_path)
+    skinning: str = "lbs"  # or "dqs": dual-quaternion skinning
     models: dict[tuple[str, str], LoadedModel] = field(default_factory=dict)
 
     def get(self, model_type: str, gender: str) -> LoadedModel:
@@ -140,7 +141,7 @@ class ModelCache:
             gender=None if fixed else key[1],
         )
         num_betas = data.num_betas if self.num_betas is None else min(self.num_betas, data.num_betas)
-        options: dict[str, Any] = {"num_betas": num_betas}
+        options: dict[str, Any] = {"num_betas": num_betas, "skinning": self.skinning}
         if spec.hand_blocks:
             options.update(use_pca=False, flat_hand_mean=True)
         if spec.has_expression:

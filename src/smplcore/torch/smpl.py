@@ -108,6 +108,7 @@ class SMPL(nn.Module):
             setup_opts["use_pca"] = False  # a Layer never reads PCA hands; smplx still registers the bases
         self.setup = setup = ModelSetup.build(data, owner=name, **setup_opts)
         self.kernel = check_kernel(kernel)
+        self.skinning = setup.skinning  # "lbs" or "dqs" (the skinning option)
         self.check_finite, self.check_rotations = bool(check_finite), bool(check_rotations)
         self.dtype = dtype
         self.gender = data.gender if spec.model_type == "open" else gender  # the open model's: normalised

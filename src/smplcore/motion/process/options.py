@@ -50,6 +50,8 @@ class ProcessOptions:
         :class:`~smplcore.motion.models.Evaluator`).
     dmpl_path : a DMPL file (``dmpl.npz``); each sequence's ``dmpls`` (T, n) then drive its soft-tissue
         blend shapes (a sequence without them gets none).
+    skinning : ``lbs`` (linear blend skinning, the default) or ``dqs`` (dual-quaternion skinning) for the
+        vertices and the extra vertex joints (the skeleton joints are the same under both).
     """
 
     model_path: str | None = None
@@ -69,6 +71,7 @@ class ProcessOptions:
     backend: str = "auto"
     chunk: int | None = None
     dmpl_path: str | None = None
+    skinning: str = "lbs"
 
     def __post_init__(self) -> None:
         from smplcore.family.specs import get_spec
@@ -101,6 +104,9 @@ class ProcessOptions:
         if self.chunk is not None and self.chunk < 1:
             raise ValueError(f"chunk: expected a positive number of frames, got {self.chunk}")
         parse_axes(self.axes)
+        from smplcore.frontend.setup import check_skinning
+
+        check_skinning(self.skinning)
 
     @property
     def suffix(self) -> str:
@@ -113,6 +119,8 @@ class ProcessOptions:
             out.pop(name)
         if out["dmpl_path"] is None:  # as before the option existed: older manifests still match
             out.pop("dmpl_path")
+        if out["skinning"] == "lbs":  # the default, absent from manifests written before the option
+            out.pop("skinning")
         return out
 
 

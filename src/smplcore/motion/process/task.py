@@ -89,6 +89,7 @@ class WorkerState:
             dtype=dtype,
             vertices=options.vertices,
             dmpl_path=options.dmpl_path,
+            skinning=options.skinning,
         )
         return cls(options, cache, Evaluator(chunk=options.chunk))
 
