@@ -183,8 +183,9 @@ def skin(
             if block.packed_weights is not None:
                 q = gemm.product(chunk_rows, block.packed_weights)
             else:
+                assert blend_buf is not None  # allocated where some weights are not packed
                 q = blocked._matmul(chunk_rows, block.weights_t, blend_buf[: 8 * m * n].reshape(8 * m, n))
-            if fix is not None and flipped[b0:b1, pblock.pairs].any():
+            if fix is not None and flipped is not None and flipped[b0:b1, pblock.pairs].any():
                 q = q + fix[8 * b0 : 8 * b1] @ pblock.weights_t
             _apply_into(q.reshape(m, 8, n), block_rest[b0:b1], out[b0:b1, block.start : block.stop], work)
     return out
