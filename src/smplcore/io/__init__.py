@@ -1,7 +1,8 @@
 """Model files in, :class:`ModelData` out: safe readers for every official layout and smplcore's own."""
 
 from smplcore.io.model_data import MODEL_TYPES, ModelData
-from smplcore.io.model_files import convert, load_model, save_npz
+from smplcore.io.model_files import load_model
+from smplcore.io.npz_writer import convert, save_npz
 from smplcore.io.safe_pickle import UnsafePickleError, safe_load
 
 __all__ = ["MODEL_TYPES", "ModelData", "UnsafePickleError", "convert", "load_model", "safe_load", "save_npz"]

@@ -8,9 +8,10 @@
 
 from smplcore.view._deps import MissingDependencyError
 from smplcore.view.bodies import Body, build_model
+from smplcore.view.show import show
 from smplcore.view.sources import BvhMotion, Source, load_keypoints, load_source, read_bvh
 from smplcore.view.video import render_video
-from smplcore.view.viewer import Viewer, show
+from smplcore.view.viewer import Viewer
 
 __all__ = [
     "Body",
