@@ -46,7 +46,7 @@ def build_model(
         # BodyModel warns about options a model type does not take; those are left out above where known.
         warnings.simplefilter("ignore")
         try:
-            return BodyModel(model_path, model_type=model_type, gender=gender, **options)
+            model = BodyModel(model_path, model_type=model_type, gender=gender, **options)
         except ModelFileError:
             if model_path is None or not Path(model_path).is_dir():
                 raise
@@ -55,6 +55,17 @@ def build_model(
             except ModelFileError:
                 pass
             raise
+    if model_type is None and model.model_type in ("smplh", "smplx"):
+        # a model file on its own: its type is known only now; load it again with axis-angle hands (no PCA)
+        return build_model(
+            model_path,
+            model.model_type,
+            gender,
+            num_betas=num_betas,
+            num_expression_coeffs=num_expression_coeffs,
+            flat_hand_mean=flat_hand_mean,
+        )
+    return model
 
 
 def _fit(name: str, value: np.ndarray, width: int) -> np.ndarray:
