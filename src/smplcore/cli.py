@@ -7,6 +7,7 @@ import importlib
 import sys
 from pathlib import Path
 
+from smplcore.cli_options import model_file_options
 from smplcore.errors import ModelFileError, ShapeError
 
 # Modules that add their own subcommand: each has ``add_parser(subparsers)`` registering a parser whose
@@ -63,24 +64,6 @@ def _cmd_convert(args: argparse.Namespace) -> int:
     return 0
 
 
-def _model_file_options(parser: argparse.ArgumentParser) -> None:
-    """``--ext`` and ``--use-pca/--no-use-pca`` of ``smplcore demo``, as smplx's ``ext`` and ``use_pca``."""
-    parser.add_argument(
-        "--ext",
-        choices=("pkl", "npz"),
-        default=None,
-        help="model file format to look for first in a folder (default: smplx's, npz for SMPL-X, pkl for the "
-        "others); the other format is used when only it is there",
-    )
-    parser.add_argument(
-        "--use-pca",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="SMPL+H / SMPL-X: hand poses as PCA coefficients (default: when the model file has a hand PCA; "
-        "an AMASS SMPL+H .npz has none)",
-    )
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="smplcore", description="SMPL-family body models: fast, exact, safe.")
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
@@ -99,7 +82,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--model-path", default=None, help="your model file or folder (default: the open model)")
     demo.add_argument("--model-type", default=None, help="smpl, smplh, smplx or open")
     demo.add_argument("--gender", default="neutral")
-    _model_file_options(demo)
+    model_file_options(demo, use_pca_default="when the model file has a hand PCA; an AMASS SMPL+H .npz has none")
     demo.add_argument("--format", choices=("obj", "ply"), default="obj", help="mesh format (default: obj)")
     demo.add_argument("--no-render", action="store_true", help="skip the PNG")
     demo.add_argument(

@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from smplcore.cli_options import model_file_options
+
 FORMATS = (".obj", ".ply", ".glb", ".bvh")
 _HAND_BLOCKS = ("left_hand_pose", "right_hand_pose", "hand_pose")
 
@@ -52,19 +54,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="smpl, smplh, smplx, mano, flame or open (default: open without --model-path, else from the file)",
     )
     parser.add_argument("--gender", default=None, help="model gender (default: the motion's, else neutral)")
-    parser.add_argument(
-        "--ext",
-        choices=("pkl", "npz"),
-        default=None,
-        help="model file format to look for first in a folder (default: smplx's, npz for SMPL-X, pkl for the "
-        "others); the other format is used when only it is there",
-    )
-    parser.add_argument(
-        "--use-pca",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="SMPL+H / SMPL-X: hand poses as PCA coefficients (default: no for motions, which store axis-angle; "
-        "for parameter sets, yes unless the hand poses have 45 values)",
+    model_file_options(
+        parser,
+        use_pca_default="no for motions, which store axis-angle; for parameter sets, yes unless the hand poses "
+        "have 45 values",
     )
     parser.add_argument(
         "--dmpl",
