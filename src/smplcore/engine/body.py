@@ -78,7 +78,9 @@ class BodyArrays:
         if posedirs is not None and np.any(posedirs):
             rows.append(np.asarray(posedirs).transpose(2, 1, 0).reshape(-1, 3 * num_verts))
         # rest joints of the template and per coefficient: (1 + K, J, 3)
-        per_coeff = (J_regressor @ shapedirs.reshape(num_verts, -1)).reshape(-1, 3, num_coeffs).transpose(2, 0, 1)
+        num_joints = J_regressor.shape[0]
+        per_coeff = (J_regressor @ shapedirs.reshape(num_verts, -1)).reshape(num_joints, 3, num_coeffs)
+        per_coeff = per_coeff.transpose(2, 0, 1)
         joints = np.concatenate([(J_regressor @ v_template)[None], per_coeff])
         parent = np.maximum(np.asarray(tree.parents), 0)
         offsets = joints - joints[:, parent] * (np.asarray(tree.parents) >= 0)[None, :, None]
