@@ -35,6 +35,7 @@ def main() -> None:
     # always; the "v_shaped off" rows pass return_shaped=False to both
     cases = (("smpl", 69, {}), ("smplx", 63, {}), ("smplx", 63, {"return_shaped": False}))
     for model_type, width, options in cases:
+        torch._dynamo.reset()  # each case compiles afresh (recompilations of one class's forward add up)
         eager = smplcore.create(root, model_type=model_type, num_betas=10, use_pca=False, create_transl=False)
         eager.requires_grad_(False)
         compiled = torch.compile(eager)
