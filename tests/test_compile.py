@@ -199,3 +199,22 @@ def test_dual_quaternion_skinning_compiles_exactly_through_the_plain_pass(fake_m
         compiled = torch.compile(model, fullgraph=True, backend="aot_eager")
         a, b = compiled(**params), model(**params)
     assert (a.vertices - b.vertices).abs().max() < 1e-5 and (a.joints - b.joints).abs().max() < 1e-5
+
+
+def test_translated_keypoints_of_a_compiled_forward_match_eager(tmp_path):
+    """Regressed keypoints are read from the translated mesh there: their values must not depend on the
+    regressor's rows summing to one (here they sum to 0.5)."""
+    import numpy as np
+
+    num_verts = smplcore.BodyModel(model_type="open").setup.data.v_template.shape[0]
+    rng = np.random.default_rng(0)
+    matrix = np.where(rng.random((17, num_verts)) < 0.003, rng.random((17, num_verts)), 0.0)
+    np.save(tmp_path / "half.npy", 0.5 * matrix / matrix.sum(axis=1, keepdims=True))
+    model = smplcore.create(model_type="open", joint_regressors={"h36m17": tmp_path / "half.npy"})
+    params = _inputs(model, 2)
+    with torch.no_grad():
+        torch._dynamo.reset()
+        compiled = torch.compile(model, fullgraph=True, backend="aot_eager")
+        a, b = compiled(**params), model(**params)
+    assert (a.vertices - b.vertices).abs().max() < 1e-5
+    assert (a.joints - b.joints).abs().max() < 1e-5

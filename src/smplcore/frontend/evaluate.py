@@ -284,28 +284,34 @@ def _operator_forward(
     if not mesh:
         return None, ops.joints(handle, arrays, coeffs, rotmats)
     verts, joints = ops.forward(handle, arrays, coeffs, rotmats, translation=transl, gradients=gradients)
-    if transl is None or not (setup.keypoints.extra.size or setup.spec.landmarks or setup.regressor is not None):
-        return verts, _with_mesh_keypoints(setup, source, joints, verts, rotmats, like)
-    keypoints = _with_mesh_keypoints(setup, source, joints, verts, rotmats, like)  # translated but the joints
-    untranslated = namespace(joints).concat([joints, keypoints[:, joints.shape[1] :] - transl[:, None]], axis=1)
-    return verts, untranslated
+    return verts, _with_mesh_keypoints(setup, source, joints, verts, rotmats, like, offset=transl)
 
 
 def _with_mesh_keypoints(
-    setup: ModelSetup, source: ArraySource, joints: Any, verts: Any, rotmats: Any, like: Any
+    setup: ModelSetup, source: ArraySource, joints: Any, verts: Any, rotmats: Any, like: Any, offset: Any = None
 ) -> Any:
-    """(B, J', 3) the skeleton ``joints`` and the keypoints read from the (untranslated) mesh ``verts``."""
+    """(B, J', 3) the skeleton ``joints`` and the untranslated keypoints read from the mesh ``verts``, which is
+    translated by (B, 3) ``offset`` (None: untranslated); the offset leaves each gathered vertex, so weights
+    need not sum to one."""
+
+    def gathered(ids: Any) -> Any:  # (B, n, 3) untranslated vertices ids
+        return verts[:, ids] if offset is None else verts[:, ids] - offset[:, None]
+
+    def landmarks(corners: Any, bary: Any) -> Any:  # (B, L, 3) untranslated: the offset times each weight sum
+        points = barycentric_points(verts, corners, bary)
+        return points if offset is None else points - bary.sum(-1)[..., None] * offset[:, None]
+
     parts = [joints]
     if setup.keypoints.extra.size:
-        parts.append(verts[:, source.constant("extra_ids", like)])
+        parts.append(gathered(source.constant("extra_ids", like)))
     if setup.spec.landmarks:
-        parts.append(barycentric_points(verts, source.constant("lmk_corners", like), source.constant("lmk_bary", like)))
+        parts.append(landmarks(source.constant("lmk_corners", like), source.constant("lmk_bary", like)))
         if setup.use_face_contour:
             rows_ = contour_rows(rotmats, setup.neck_chain)
             corners = source.constant("contour_corners", like)[rows_]
-            parts.append(barycentric_points(verts, corners, source.constant("contour_bary", like)[rows_]))
+            parts.append(landmarks(corners, source.constant("contour_bary", like)[rows_]))
     if setup.regressor is not None:
-        subset = verts[:, source.constant("regressor_ids", like)]
+        subset = gathered(source.constant("regressor_ids", like))
         parts.append(namespace(verts).einsum("kn,bnd->bkd", source.constant("regressor_weights", like), subset))
     return _joined(parts)
 
