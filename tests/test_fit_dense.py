@@ -1,4 +1,5 @@
-"""fit.dense: the batched forward, the structured gradient and the batched Jacobian equal pose_points'."""
+"""fit.dense and fit.normal_matrix: the batched forward, the structured gradient and the Gauss–Newton matrix
+equal pose_points' (whose dense Jacobian is the reference)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import pytest
 import smplcore
 from smplcore.fit import dense
 from smplcore.fit.body import FitBody, pose_points
+from smplcore.fit.normal_matrix import normal_matrix
 
 MODEL_TYPES = ["smpl", "smplh", "smplx", "mano", "flame", "open"]
 
@@ -34,9 +36,11 @@ def test_dense_products_match_pose_points(fake_models, model_type):
     expected = np.einsum("bncp,ncb->bp", lin.jacobian, residual)
     scale = np.abs(expected).max()
     np.testing.assert_allclose(dense.gradient(body, arrays, posed, residual), expected, atol=1e-12 * scale)
-    jac = dense.jacobian(body, pts, posed)
-    ref = lin.jacobian.reshape(jac.shape)
-    np.testing.assert_allclose(jac, ref, atol=1e-12 * np.abs(ref).max())
+    weights = rng.uniform(0, 2, (3, len(ids)))
+    jac = lin.jacobian.reshape(3, -1, lin.jacobian.shape[-1]) * np.sqrt(np.repeat(weights, 3, axis=1))[..., None]
+    expected = np.swapaxes(jac, 1, 2) @ jac
+    matrix = normal_matrix(body, pts, arrays, posed, weights)
+    np.testing.assert_allclose(matrix, expected, atol=1e-12 * np.abs(expected).max())
 
 
 def test_float32_products_stay_close(fake_models):

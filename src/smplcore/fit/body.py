@@ -16,12 +16,18 @@ shape coefficients ``A_i S_i + Σ_m w_im T_{l_m}``, ``A_i = Σ_m w_im G_{l_m}``,
 
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from smplcore.engine import KinematicTree, rodrigues, world_transforms
+
+# Point sets and their arrays kept per model (the fitting stages of a call use a handful).
+_CACHE_SIZE = 48
 
 
 @dataclass(frozen=True)
@@ -78,7 +84,8 @@ class FitBody:
     output_rows: np.ndarray  # (J', V + J) output joints as combinations of points (dynamic contour: zero)
     faces: np.ndarray
     dynamic_joints: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-    _cache: dict = field(default_factory=dict, repr=False)
+    _cache: OrderedDict = field(default_factory=OrderedDict, repr=False)
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     @property
     def num_joints(self) -> int:
@@ -186,30 +193,48 @@ class FitBody:
 
     # -- point sets ---------------------------------------------------------------------------------
 
+    def cached(self, key: Any, build: Callable[[], Any]) -> Any:
+        """``build()``, remembered under ``key`` (the most recently used few dozen are kept)."""
+        cache = self._cache
+        with self._lock:
+            if key in cache:
+                cache.move_to_end(key)
+                return cache[key]
+        value = build()
+        with self._lock:
+            cache[key] = value
+            if len(cache) > _CACHE_SIZE:
+                cache.popitem(last=False)
+        return value
+
     def points(self, ids: np.ndarray) -> Points:
         """The rows of the points ``ids`` (cached per id set)."""
         ids = np.asarray(ids, np.int64)
-        key = ids.tobytes()
-        cached = self._cache.get(key)
-        if cached is not None:
-            return cached
+        return self.cached(("points", ids.tobytes()), lambda: self._points(ids))
+
+    def below_of(self) -> np.ndarray:
+        """(J, J) bool: ``[k, j]`` when joint ``j`` is at or below joint ``k``."""
+
+        def build() -> np.ndarray:
+            below = np.zeros((self.num_joints, self.num_joints), bool)
+            for j in range(self.num_joints):
+                below[self.tree.chain_to_root(j), j] = True
+            return below
+
+        return self.cached("below_of", build)
+
+    def _points(self, ids: np.ndarray) -> Points:
         joints, weights = self.joints[ids], self.weights[ids]
         num_joints = self.num_joints
+        below_of = self.below_of()
         # ancestors of each point: every joint on the chains of its influencing joints
-        chains = [self.tree.chain_to_root(j) for j in range(num_joints)]
-        below_of = np.zeros((num_joints, num_joints), bool)  # below_of[k, j]: j at or below k
-        for j, chain in enumerate(chains):
-            below_of[chain, j] = True
         influence = np.zeros((len(ids), num_joints), bool)
         for m in range(joints.shape[1]):
             influence[np.arange(len(ids)), joints[:, m]] |= weights[:, m] > 0
         moved = (influence.astype(np.int64) @ below_of.T.astype(np.int64)) > 0  # (n, J)
         width = max(1, int(moved.sum(1).max()))
-        ancestors = np.full((len(ids), width), num_joints, np.int64)
-        for i, row in enumerate(moved):
-            ks = np.flatnonzero(row)
-            ancestors[i, : len(ks)] = ks
-        below = np.zeros((len(ids), width, joints.shape[1]))
+        first = np.argsort(~moved, axis=1, kind="stable")[:, :width]  # the moving joints first, ascending
+        ancestors = np.where(np.take_along_axis(moved, first, axis=1), first, num_joints)
         valid = ancestors < num_joints
         safe = np.where(valid, ancestors, 0)
         below = below_of[safe[:, :, None], joints[:, None, :]] * valid[:, :, None] * weights[:, None, :]
@@ -218,10 +243,7 @@ class FitBody:
             posedirs = np.zeros((len(ids), 3, num_joints - 1, 9))
             mesh = ids < self.num_vertices
             posedirs[mesh] = self.posedirs[ids[mesh]]
-        points = Points(ids, self.template[ids], self.shape[ids], posedirs, joints, weights, ancestors, below)
-        if len(self._cache) < 16:
-            self._cache[key] = points
-        return points
+        return Points(ids, self.template[ids], self.shape[ids], posedirs, joints, weights, ancestors, below)
 
     def pose_prior_weights(self, weight: float) -> np.ndarray | None:
         """(Q,) pose-prior weights: ``weight`` on every block but the global orientation (None for 0)."""
@@ -254,15 +276,33 @@ def skew(v: np.ndarray) -> np.ndarray:
 
 
 def right_jacobian(theta: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) right Jacobian of SO(3): ``R(θ + dθ) ≈ R(θ) exp([J_r(θ) dθ]×)``."""
-    t2 = np.sum(theta * theta, axis=-1)[..., None, None]
+    """(..., 3, 3) right Jacobian of SO(3): ``R(θ + dθ) ≈ R(θ) exp([J_r(θ) dθ]×)``.
+
+    ``J_r = I − a [θ]× + b [θ]×² = (1 − b t²) I − a [θ]× + b θ θᵀ`` with ``t = |θ|``, ``a = (1 − cos t) / t²``,
+    ``b = (t − sin t) / t³`` (Taylor series near zero), written out entry by entry.
+    """
+    x, y, z = theta[..., 0], theta[..., 1], theta[..., 2]
+    t2 = x * x + y * y + z * z
     small = t2 < 1e-6
     safe = np.where(small, 1.0, t2)
     t = np.sqrt(safe)
     a = np.where(small, 0.5 - t2 / 24, (1 - np.cos(t)) / safe)
     b = np.where(small, 1 / 6 - t2 / 120, (t - np.sin(t)) / (safe * t))
-    k = skew(theta)
-    return np.eye(3) - a * k + b * (k @ k)
+    c = 1 - b * t2
+    bx, by, bz = b * x, b * y, b * z
+    ax, ay, az = a * x, a * y, a * z
+    rows = (
+        c + bx * x,
+        az + bx * y,
+        bx * z - ay,
+        by * x - az,
+        c + by * y,
+        ax + by * z,
+        ay + bz * x,
+        bz * y - ax,
+        c + bz * z,
+    )
+    return np.stack(rows, axis=-1).reshape(*theta.shape, 3)
 
 
 @dataclass

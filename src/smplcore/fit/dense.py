@@ -26,8 +26,8 @@ import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
 
-from smplcore.engine import rodrigues, world_transforms
-from smplcore.fit.body import FitBody, Points, right_jacobian, skew
+from smplcore.fit.body import FitBody, Points
+from smplcore.fit.kinematics import Kinematics, kinematics
 
 
 @dataclass(frozen=True)
@@ -40,6 +40,7 @@ class DensePoints:
     basis: np.ndarray  # (K + 9 (J - 1), 3 n): shape (and expression) directions, then pose correctives
     basis_t: np.ndarray  # (3 n, K + 9 (J - 1)) contiguous transpose
     subtree: np.ndarray  # (J, J): subtree[k, j] = 1 if joint j is at or below joint k
+    shape_t: np.ndarray  # (n, K, 3) the shape (and expression) directions of each point, transposed
     num_coeffs: int
     has_pose: bool
     dtype: np.dtype
@@ -52,10 +53,10 @@ class DensePoints:
 def dense_points(body: FitBody, pts: Points, dtype: npt.DTypeLike = np.float64) -> DensePoints:
     """The :class:`DensePoints` of ``pts`` in ``dtype`` (cached on ``body``)."""
     dt = np.dtype(dtype)
-    key = ("dense", dt.str, pts.ids.tobytes())
-    cached = body._cache.get(key)
-    if cached is not None:
-        return cached
+    return body.cached(("dense", dt.str, pts.ids.tobytes()), lambda: _dense_points(body, pts, dt))
+
+
+def _dense_points(body: FitBody, pts: Points, dt: np.dtype) -> DensePoints:
     n, num_joints = len(pts.ids), body.num_joints
     weights = np.zeros((n, num_joints))
     for m in range(pts.joints.shape[1]):
@@ -65,37 +66,48 @@ def dense_points(body: FitBody, pts: Points, dtype: npt.DTypeLike = np.float64) 
     if pts.posedirs is not None:
         blocks.append(pts.posedirs.reshape(3 * n, -1).T)
     basis = np.concatenate(blocks, axis=0).astype(dt)
-    subtree = np.zeros((num_joints, num_joints))
-    for j in range(num_joints):
-        subtree[body.tree.chain_to_root(j), j] = 1.0
-    arrays = DensePoints(
+    return DensePoints(
         weights=sp.csr_matrix(weights.astype(dt)),
         weights_t=sp.csr_matrix(weights.T.astype(dt)),
         template=pts.template.reshape(-1, 1).astype(dt),
         basis=np.ascontiguousarray(basis),
         basis_t=np.ascontiguousarray(basis.T),
-        subtree=subtree,
+        subtree=body.below_of().astype(np.float64),
+        shape_t=np.ascontiguousarray(np.swapaxes(pts.shape, 1, 2), dtype=dt),
         num_coeffs=pts.shape.shape[-1],
         has_pose=has_pose,
         dtype=dt,
     )
-    if len(body._cache) < 32:
-        body._cache[key] = arrays
-    return arrays
 
 
 @dataclass
 class Posed:
-    """Posed points (n, 3, B) and the intermediate arrays the gradient reuses."""
+    """Posed points (n, 3, B), the intermediate arrays the gradient reuses and the bodies' kinematics."""
 
     points: np.ndarray  # (n, 3, B) posed points, translation included
     rest: np.ndarray  # (n, 3, B) shaped and corrected rest points
     blend: np.ndarray  # (n, 3, 3, B) blended world rotations A_i
-    theta: np.ndarray  # (B, J, 3)
-    rot: np.ndarray  # (B, J, 3, 3) local rotations
-    world: np.ndarray  # (B, J, 3, 3)
-    pos: np.ndarray  # (B, J, 3) posed joints (before the translation)
-    shift: np.ndarray  # (B, J, 3) p_j − G_j j̄_j
+    kin: Kinematics
+
+    @property
+    def theta(self) -> np.ndarray:  # (B, J, 3)
+        return self.kin.theta
+
+    @property
+    def rot(self) -> np.ndarray:  # (B, J, 3, 3) local rotations
+        return self.kin.rot
+
+    @property
+    def world(self) -> np.ndarray:  # (B, J, 3, 3)
+        return self.kin.world
+
+    @property
+    def pos(self) -> np.ndarray:  # (B, J, 3) posed joints (before the translation)
+        return self.kin.pos
+
+    @property
+    def shift(self) -> np.ndarray:  # (B, J, 3) p_j − G_j j̄_j
+        return self.kin.shift
 
 
 def _batch_last(a: np.ndarray, dtype: np.dtype) -> np.ndarray:
@@ -103,40 +115,36 @@ def _batch_last(a: np.ndarray, dtype: np.dtype) -> np.ndarray:
     return np.ascontiguousarray(np.moveaxis(a, 0, -1), dtype=dtype).reshape(a.shape[1], -1)
 
 
-def pose(body: FitBody, arrays: DensePoints, theta: np.ndarray, coeffs: np.ndarray, transl: np.ndarray) -> Posed:
-    """Pose the points of ``arrays`` for (B, J, 3) ``theta``, (B, K) ``coeffs``, (B, 3) ``transl``."""
+def pose(
+    body: FitBody,
+    arrays: DensePoints,
+    theta: np.ndarray,
+    coeffs: np.ndarray,
+    transl: np.ndarray,
+    kin: Kinematics | None = None,
+) -> Posed:
+    """Pose the points of ``arrays`` for (B, J, 3) ``theta``, (B, K) ``coeffs``, (B, 3) ``transl`` (``kin``:
+    their :func:`~smplcore.fit.kinematics.kinematics`, when already computed)."""
+    if kin is None:
+        kin = kinematics(body, theta, coeffs)
     batch, num_joints = theta.shape[:2]
     n, dtype = arrays.count, arrays.dtype
-    rot = rodrigues(theta)
-    jrest = body.joint_template + np.einsum("jck,bk->bjc", body.joint_shape, coeffs)
-    world, pos = world_transforms(rot, jrest, body.tree)
-    shift = pos - (world @ jrest[..., None])[..., 0]
     feats = coeffs
     if arrays.has_pose:
-        feats = np.concatenate([coeffs, (rot[:, 1:] - np.eye(3)).reshape(batch, -1)], axis=1)
+        feats = np.concatenate([coeffs, (kin.rot[:, 1:] - np.eye(3)).reshape(batch, -1)], axis=1)
     rest = (arrays.basis_t @ np.ascontiguousarray(feats.T, dtype=dtype) + arrays.template).reshape(n, 3, batch)
-    packed = np.concatenate([world.reshape(batch, num_joints, 9), shift], axis=2)  # (B, J, 12)
+    packed = np.concatenate([kin.world.reshape(batch, num_joints, 9), kin.shift], axis=2)  # (B, J, 12)
     mixed = (arrays.weights @ _batch_last(packed, dtype)).reshape(n, 12, batch)
     blend = mixed[:, :9].reshape(n, 3, 3, batch)
-    points = mixed[:, 9:] + np.einsum("ncdb,ndb->ncb", blend, rest) + transl.T.astype(dtype)
-    return Posed(points, rest, blend, theta, rot, world, pos, shift)
+    points = mixed[:, 9:] + transl.T.astype(dtype)
+    for d in range(3):
+        points += blend[:, :, d] * rest[:, None, d]
+    return Posed(points, rest, blend, kin)
 
 
 def _vee(m: np.ndarray) -> np.ndarray:
     """(..., 3) ``ε_cde m_de`` of (..., 3, 3) matrices (twice the axial vector of the skew part)."""
     return np.stack([m[..., 1, 2] - m[..., 2, 1], m[..., 2, 0] - m[..., 0, 2], m[..., 0, 1] - m[..., 1, 0]], -1)
-
-
-def shape_steps(body: FitBody, world: np.ndarray) -> np.ndarray:
-    """(B, J, 3, K) ``T_j``: how the shape coefficients move joint ``j``'s skinning offset."""
-    parent = np.maximum(body.parents, 0)
-    parent_world = np.where((body.parents >= 0)[None, :, None, None], world[:, parent], np.eye(3))
-    steps = (parent_world - world) @ body.joint_shape  # (B, J, 3, K)
-    totals = np.empty_like(steps)
-    for j in body.tree.order:
-        p = body.parents[j]
-        totals[:, j] = steps[:, j] if p < 0 else steps[:, j] + totals[:, p]
-    return totals
 
 
 def gradient(body: FitBody, arrays: DensePoints, posed: Posed, residual: np.ndarray) -> np.ndarray:
@@ -155,14 +163,11 @@ def gradient(body: FitBody, arrays: DensePoints, posed: Posed, residual: np.ndar
     c_sub = arrays.subtree @ c_joint
     r_sub = arrays.subtree @ r_joint
     g_world = c_sub - np.cross(posed.pos, r_sub)  # (B, J, 3) world-axis torque about each joint
-    g_local = np.einsum("bjcd,bjc->bjd", posed.world, g_world)
-    g_theta = np.einsum("bjcd,bjc->bjd", right_jacobian(posed.theta), g_local)
+    g_theta = np.einsum("bjcd,bjc->bjd", posed.kin.lift, g_world)
     if arrays.has_pose:
-        jr = right_jacobian(posed.theta[:, 1:])
-        dvec = (posed.rot[:, 1:, None] @ skew(np.swapaxes(jr, -1, -2))).reshape(batch, num_joints - 1, 3, 9)
         h = g_basis[:, k:].reshape(batch, num_joints - 1, 9)
-        g_theta[:, 1:] += np.einsum("bjaf,bjf->bja", dvec, h)
-    g_coeffs = g_basis[:, :k] + np.einsum("bjck,bjc->bk", shape_steps(body, posed.world), r_joint)
+        g_theta[:, 1:] += np.einsum("bjfa,bjf->bja", posed.kin.slopes, h)
+    g_coeffs = g_basis[:, :k] + np.einsum("bjck,bjc->bk", posed.kin.totals, r_joint)
     g_transl = residual.sum(0).T.astype(np.float64)
     return np.concatenate([g_theta.reshape(batch, -1), g_coeffs, g_transl], axis=1)
 
@@ -170,67 +175,10 @@ def gradient(body: FitBody, arrays: DensePoints, posed: Posed, residual: np.ndar
 def coefficient_jacobian(body: FitBody, pts: Points | None, arrays: DensePoints, posed: Posed) -> np.ndarray:
     """(n, 3, K, B) derivative of the posed points with respect to the shape coefficients."""
     n, k = arrays.count, arrays.num_coeffs
-    shape = arrays.basis[:k].T.reshape(n, 3, k)
-    dirs = np.einsum("ncdb,ndk->nckb", posed.blend, shape)
-    totals = shape_steps(body, posed.world)  # (B, J, 3, K)
-    mixed = (arrays.weights @ _batch_last(totals.reshape(*totals.shape[:2], -1), arrays.dtype)).reshape(n, 3, k, -1)
-    return dirs + mixed
-
-
-def _jacobian_constants(body: FitBody, pts: Points) -> tuple:
-    """Per point set: ancestors (n, a) padded with the root, their weights below (n, a, m) and sums (n, a),
-    the pose correctives (n, 3, 9 (J - 1)). A padded slot repeats the root's, so that scattering the
-    blocks writes the same value twice instead of a zero over a real one."""
-    key = ("jac", pts.ids.tobytes())
-    cached = body._cache.get(key)
-    if cached is not None:
-        return cached
-    valid = pts.ancestors < body.num_joints
-    ancestors = np.where(valid, pts.ancestors, pts.ancestors[:, :1])
-    below = np.where(valid[..., None], pts.below, pts.below[:, :1])
-    posedirs = None if pts.posedirs is None else pts.posedirs.reshape(len(pts.ids), 3, -1)
-    out = (ancestors, np.ascontiguousarray(below), below.sum(-1), posedirs)
-    if len(body._cache) < 32:
-        body._cache[key] = out
-    return out
-
-
-def jacobian(body: FitBody, pts: Points, posed: Posed) -> np.ndarray:
-    """(B, 3 n, 3 J + K + 3) exact Jacobian of the posed points ``pts`` (in the posed arrays' precision), equal to
-    :func:`smplcore.fit.body.pose_points`' — built from the ancestors of each point only."""
-    batch, num_joints = posed.theta.shape[:2]
-    n, k = len(pts.ids), pts.shape.shape[-1]
-    ancestors, below, below_sum, posedirs = _jacobian_constants(body, pts)
-    f = posed.rest.dtype  # float32 for float32 working arrays: a Gauss-Newton matrix need not be exact
-    rest = np.moveaxis(posed.rest, -1, 0)  # (B, n, 3)
-    world = posed.world.astype(f)
-    moved = world[:, pts.joints] @ rest[:, :, None, :, None]  # (B, n, m, 3, 1)
-    moved = moved[..., 0] + posed.shift.astype(f)[:, pts.joints]
-    u = np.einsum("nam,bnmc->bnac", below.astype(f), moved)
-    u -= below_sum.astype(f)[None, :, :, None] * posed.pos.astype(f)[:, ancestors]
-    local = (posed.world @ right_jacobian(posed.theta)).astype(f)[:, ancestors]  # (B, n, a, 3 c, 3 col)
-    u0, u1, u2 = u[..., 0, None], u[..., 1, None], u[..., 2, None]
-    l0, l1, l2 = local[..., 0, :], local[..., 1, :], local[..., 2, :]  # rows c of the columns col
-    blocks = np.stack([l1 * u2 - l2 * u1, l2 * u0 - l0 * u2, l0 * u1 - l1 * u0], axis=-2)  # (B, n, a, c, col)
-    width = 3 * num_joints + k + 3
-    jac = np.zeros((batch, n, 3, width), f)
-    # flat positions of the blocks in jac: body b, point i, row c, column 3 ancestor + col
-    offsets = (np.arange(n)[:, None, None, None] * 3 * width + np.arange(3)[None, None, :, None] * width) + (
-        3 * ancestors[:, :, None, None] + np.arange(3)[None, None, None, :]
-    )  # (n, a, 3, 3)
-    flat = (np.arange(batch)[:, None] * (n * 3 * width) + offsets.reshape(1, -1)).reshape(-1)
-    jac.reshape(-1)[flat] = blocks.reshape(-1)
-    rot = jac[..., : 3 * num_joints].reshape(batch, n, 3, num_joints, 3)
-    blend = np.moveaxis(posed.blend, -1, 0)  # (B, n, 3, 3)
-    if posedirs is not None:
-        jr = right_jacobian(posed.theta[:, 1:])
-        dvec = (posed.rot[:, 1:, None] @ skew(np.swapaxes(jr, -1, -2))).reshape(batch, num_joints - 1, 3, 9)
-        mixed = (blend @ posedirs.astype(f)).reshape(batch, n * 3, num_joints - 1, 9).transpose(0, 2, 1, 3)
-        corr = mixed @ np.swapaxes(dvec, -1, -2).astype(f)  # (B, J - 1, 3 n, 3 a)
-        rot[:, :, :, 1:] += np.moveaxis(corr.reshape(batch, num_joints - 1, n, 3, 3), 1, 3)
-    totals = shape_steps(body, posed.world).astype(f)  # (B, J, 3, K)
-    jac[..., 3 * num_joints : 3 * num_joints + k] = blend @ pts.shape.astype(f) + np.einsum(
-        "nm,bnmck->bnck", pts.weights, totals[:, pts.joints]
-    )
-    jac[..., -3:] = np.eye(3)
-    return jac.reshape(batch, 3 * n, -1)
+    batch = posed.blend.shape[-1]
+    # Σ_d A_cd S_dk per point: (n, K, 3 d) @ (n, 3 d, 3 c B), one small product per point
+    blend = np.swapaxes(posed.blend, 1, 2).reshape(n, 3, 3 * batch)
+    dirs = np.swapaxes((arrays.shape_t @ blend).reshape(n, k, 3, batch), 1, 2).copy()
+    totals = posed.kin.totals  # (B, J, 3, K)
+    dirs += (arrays.weights @ _batch_last(totals.reshape(*totals.shape[:2], -1), arrays.dtype)).reshape(n, 3, k, -1)
+    return dirs

@@ -15,6 +15,8 @@ import numpy.typing as npt
 
 from smplcore.fit import dense
 from smplcore.fit.body import FitBody
+from smplcore.fit.normal_matrix import normal_matrix
+from smplcore.fit.parallel import chunks, map_chunks
 from smplcore.fit.solver import (
     Objective,
     State,
@@ -28,8 +30,9 @@ from smplcore.fit.solver import (
 
 # Bodies per chunk: keeps the (n, 3, 3, chunk) working arrays of a 10k-vertex mesh near 100 MB.
 _CHUNK_POINTS = 1_500_000
-# Values of the dense subset Jacobian per chunk of bodies (~100 MB in float64).
-_CHUNK_JACOBIAN = 12_000_000
+# A step moving a parameter by more than this (radians, metres, shape units) makes the Gauss-Newton
+# matrix stale: it is recomputed at the next iteration.
+_FAR = 0.05
 
 
 class _Problem:
@@ -81,19 +84,16 @@ class _Problem:
         return Objective(**{**obj.__dict__, "pose_prior": prior, "pose_mean": mean})
 
     def hessian(self, state: State, rows: np.ndarray) -> np.ndarray:
-        """(b, P, P) Gauss–Newton matrix of the subset, scaled to the whole set, plus the priors' diagonal
-        (in chunks of bodies: the dense Jacobian has 3 n P values per body)."""
+        """(b, P, P) Gauss–Newton matrix of the subset (without the pose correctives' share, see
+        :mod:`smplcore.fit.normal_matrix`), scaled to the whole set, plus the priors' diagonal."""
         body, hobj = self.body, self.hobj
-        per_body = 3 * len(hobj.points.ids) * (3 * body.num_joints + body.num_coeffs + 3)
-        chunk = max(1, _CHUNK_JACOBIAN // per_body)
-        hess = np.empty((len(rows), len(self.cols), len(self.cols)))
-        for s in range(0, len(rows), chunk):
-            part = slice(s, s + chunk)
-            sub = _unflat(body, _flat(state)[part])
-            posed = dense.pose(body, self.harrays, body.full_pose(sub.pose), sub.coeffs, sub.transl)
-            jac = self._columns(dense.jacobian(body, hobj.points, posed))
-            jac *= np.sqrt(np.repeat(hobj.weights[rows[part]], 3, axis=1))[..., None].astype(jac.dtype)
-            hess[part] = np.matmul(np.swapaxes(jac, 1, 2), jac) * self.ratio[rows[part], None, None]
+        posed = dense.pose(body, self.harrays, body.full_pose(state.pose), state.coeffs, state.transl)
+        hess = normal_matrix(body, hobj.points, self.harrays, posed, hobj.weights[rows])
+        if self.transform is not None:
+            hess = self.transform.T @ hess @ self.transform
+        elif self.select is not None:
+            hess = hess[:, self.select[:, None], self.select[None, :]]
+        hess *= self.ratio[rows, None, None]
         return hess + self._prior(rows)[:, :, None] * np.eye(len(self.cols))
 
     def _columns(self, jac: np.ndarray) -> np.ndarray:
@@ -127,9 +127,11 @@ def refine(
     step_tol: float = 1e-7,
     abs_tol: float | None = None,
     hessian_every: int = 1,
+    workers: int | None = 1,
 ) -> tuple[State, np.ndarray, np.ndarray, np.ndarray, int]:
     """Minimise ``obj`` from ``state`` (see the module docstring; ``hessian_obj`` is the subset objective,
-    default ``obj`` itself).
+    default ``obj`` itself). Independent chunks of bodies run in up to ``workers`` threads (None: every
+    core).
 
     Returns the state, (B,) costs, (B, n) final point distances, (B,) converged flags (relative cost
     decrease below ``tol``, decrease per unit weight below ``abs_tol`` m², largest step below
@@ -151,18 +153,23 @@ def refine(
     coupled = bool(shared_cols.any()) and batch > 1
     if not coupled:
         shared_cols[:] = False
-    chunk = batch if coupled else max(1, _CHUNK_POINTS // max(1, len(obj.points.ids)))
     x = _flat(state).copy()
     costs = np.empty(batch)
     dists = np.empty((batch, len(obj.points.ids)))
     converged = np.zeros(batch, bool)
-    most = 0
-    for s in range(0, batch, chunk):
-        rows = np.arange(s, min(batch, s + chunk))
+    if coupled:
+        parts = [np.arange(batch)]
+    else:  # a chunk per thread, each small enough for the working arrays
+        size = max(1, _CHUNK_POINTS // max(1, len(obj.points.ids)))
+        parts = [p for c in chunks(batch, workers) for p in np.array_split(c, -(-len(c) // size))]
+
+    def run(rows: np.ndarray) -> int:
         x[rows], costs[rows], dists[rows], converged[rows], its = _solve(
             body, problem, x[rows], rows, shared_cols, coupled, max_iter, tol, step_tol, abs_tol, hessian_every
         )
-        most = max(most, its)
+        return its
+
+    most = max(map_chunks(run, parts, workers), default=0)
     return _unflat(body, x), costs, dists, converged, most
 
 
@@ -209,9 +216,11 @@ def _solve(body, problem, x, rows, shared_cols, coupled, max_iter, tol, step_tol
         )
         fresh[keep] = False
         age[active] += 1
-        age[active[~better]] = every  # a rejected step: recompute the matrix (if stale) and damp more
+        # a rejected step, or one that moved far (the linearisation has changed): a new matrix next time
+        age[active[~better | (np.max(np.abs(step), axis=1) > _FAR)]] = every
         damping[active] = np.where(better, np.maximum(damping[active] / 3, 1e-9), damping[active] * 10)
         done = (better & ((decrease < tol) | small | tiny)) | (~better & (damping[active] > 1e8))
+        done |= cost[active] <= abs_tol * scale[active]  # at the precision's floor: steps only add noise
         if coupled:
             done = np.full(len(active), done.all() or (better.all() and decrease.sum() < tol * len(active)))
         converged[active] |= done

@@ -9,11 +9,11 @@ part is the weighted Procrustes (Kabsch) rotation between its rest-pose points a
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+import numpy.typing as npt
 
-from smplcore.engine import rodrigues
 from smplcore.fit import dense
 from smplcore.fit.body import FitBody, Points
+from smplcore.fit.rotations import nearest_rotations, rotation_log
 from smplcore.fit.solver import Objective, State, _step
 
 
@@ -43,100 +43,134 @@ def _rotations_from_moments(
     """Kabsch from weighted sums: Σ w t sᵀ (..., 3, 3), Σ w t, Σ w s (..., 3) and Σ w (...,)."""
     safe = np.maximum(total, 1e-300)[..., None, None]
     cov = moments - target_sum[..., :, None] * source_sum[..., None, :] / safe
-    u, sing, vt = np.linalg.svd(cov)
-    sign = np.sign(np.linalg.det(u @ vt))
-    sign = np.where(sign == 0, 1.0, sign)
-    u = u.copy()
-    u[..., :, 2] *= sign[..., None]
-    return u @ vt, sing[..., 1] / safe[..., 0, 0]
+    rot, middle = nearest_rotations(cov)
+    return rot, middle / safe[..., 0, 0]
 
 
-def rotation_log(rotmats: np.ndarray) -> np.ndarray:
-    """(..., 3) axis-angle of (..., 3, 3) rotation matrices (angles in [0, π])."""
-    flat = rotmats.reshape(-1, 3, 3)
-    return Rotation.from_matrix(flat).as_rotvec().reshape(*rotmats.shape[:-2], 3)
+def part_membership(body: FitBody, pts: Points) -> np.ndarray:
+    """(J, n): the weight of each point in each part (the points a joint moves with at least half the weight)."""
+
+    def build() -> np.ndarray:
+        n = len(pts.ids)
+        membership = np.zeros((n, body.num_joints))
+        for m in range(pts.joints.shape[1]):
+            np.add.at(membership, (np.arange(n), pts.joints[:, m]), pts.weights[:, m])
+        import os
+
+        pw = float(os.environ.get("MEMB_POW", "1"))
+        return np.ascontiguousarray(np.where(membership >= 0.5, membership**pw, 0.0).T)
+
+    return body.cached(("membership", pts.ids.tobytes()), build)
 
 
 def part_rotations(body: FitBody, pts: Points, rest: np.ndarray, targets: np.ndarray, weights: np.ndarray):
-    """World rotation (B, J, 3, 3) of each part and whether it was determined (B, J)."""
-    n = len(pts.ids)
-    membership = np.zeros((n, body.num_joints))
-    for m in range(pts.joints.shape[1]):
-        np.add.at(membership, (np.arange(n), pts.joints[:, m]), pts.weights[:, m])
-    membership = np.where(membership >= 0.5, membership, 0.0)  # a part: the points it mostly moves
-    w = membership.T[None] * weights[:, None, :]  # (B, J, n)
-    outer = (targets[..., :, None] * rest[..., None, :]).reshape(len(rest), n, 9)
-    moments = (w @ outer).reshape(len(rest), body.num_joints, 3, 3)  # per part Σ w t sᵀ, one product
-    rot, strength = _rotations_from_moments(moments, w @ targets, w @ rest, w.sum(-1))
+    """World rotation (B, J, 3, 3) of each part and whether it was determined (B, J), from (n, 3, B) rest
+    points and targets (batch last) and (n, B) weights."""
+    n, batch = weights.shape
+    membership = part_membership(body, pts).astype(rest.dtype)  # (J, n)
+    wt = targets * weights[:, None, :]
+    outer = (wt[:, :, None, :] * rest[:, None, :, :]).reshape(n, 9 * batch)  # Σ over points of w t sᵀ
+    sums = np.concatenate([outer, wt.reshape(n, -1), (rest * weights[:, None]).reshape(n, -1), weights], axis=1)
+    parts = (membership @ sums).astype(np.float64)  # (J, (9 + 3 + 3 + 1) B): one product for every sum
+    num_joints = body.num_joints
+    moments = np.moveaxis(parts[:, : 9 * batch].reshape(num_joints, 3, 3, batch), -1, 0)
+    target_sum = np.moveaxis(parts[:, 9 * batch : 12 * batch].reshape(num_joints, 3, batch), -1, 0)
+    source_sum = np.moveaxis(parts[:, 12 * batch : 15 * batch].reshape(num_joints, 3, batch), -1, 0)
+    total = parts[:, 15 * batch :].T
+    rot, strength = _rotations_from_moments(moments, target_sum, source_sum, total)
     return rot, strength > 1e-6
 
 
-def initialize(body: FitBody, obj: Objective, state: State, *, iterations: int = 3) -> State:
+def initialize(
+    body: FitBody, obj: Objective, state: State, *, iterations: int = 3, dtype: npt.DTypeLike = np.float64
+) -> State:
     """Alternate per-part Procrustes rotations and a linear solve for the shape and translation.
 
     ``state`` gives the starting shape (and the pose of undetermined parts); returns a new state.
+    Products over the points run in ``dtype``.
     """
     pts = obj.points
-    batch = len(state.pose)
     state = state.copy()
     parents = body.parents
+    arrays = dense.dense_points(body, pts, dtype)
+    targets = np.ascontiguousarray(np.moveaxis(obj.targets, 0, -1), dtype=arrays.dtype)  # (n, 3, B)
+    weights = np.ascontiguousarray(obj.weights.T, dtype=arrays.dtype)  # (n, B)
     for _ in range(iterations):
         theta = body.full_pose(state.pose)
-        rot = rodrigues(theta)
-        rest = pts.template + np.einsum("nck,bk->bnc", pts.shape, state.coeffs)
-        if pts.posedirs is not None:
-            feats = (rot[:, 1:] - np.eye(3)).reshape(batch, body.num_joints - 1, 9)
-            rest = rest + np.einsum("ncjf,bjf->bnc", pts.posedirs, feats)
-        world, known = part_rotations(body, pts, rest, obj.targets, obj.weights)
+        posed = dense.pose(body, arrays, theta, state.coeffs, state.transl)
+        world, known = part_rotations(body, pts, posed.rest, targets, weights)
         # a part without enough points keeps its current local rotation
-        current_world = np.empty_like(rot)
-        for j in body.tree.order:
-            p = parents[j]
-            if p >= 0:
-                current_world[:, j] = current_world[:, p] @ rot[:, j]
-            else:
-                current_world[:, j] = rot[:, j]
-            current_world[:, j] = np.where(known[:, j, None, None], world[:, j], current_world[:, j])
+        rot = posed.rot
+        current_world = np.where(known[..., None, None], world, posed.world)
         local = np.empty_like(rot)
         for j in body.tree.order:
             p = parents[j]
+            if p >= 0 and not known[:, j].all():  # undetermined: follow the (new) parent
+                current_world[:, j] = np.where(
+                    known[:, j, None, None], current_world[:, j], current_world[:, p] @ rot[:, j]
+                )
             parent_world = np.eye(3) if p < 0 else np.swapaxes(current_world[:, p], -1, -2)
             local[:, j] = parent_world @ current_world[:, j]
         state.pose = body.pose_from_full(rotation_log(local))
-        state = shape_and_translation(body, obj, state)
+        state = shape_and_translation(body, obj, state, arrays=arrays, targets=targets, weights=weights)
     return state
 
 
-def shape_and_translation(body: FitBody, obj: Objective, state: State) -> State:
+def shape_and_translation(
+    body: FitBody,
+    obj: Objective,
+    state: State,
+    *,
+    arrays: dense.DensePoints | None = None,
+    targets: np.ndarray | None = None,
+    weights: np.ndarray | None = None,
+) -> State:
     """The least-squares shape coefficients and translation for the state's rotations (exact: the posed
-    points are affine in them), from one linear solve on those columns (shape prior included)."""
+    points are affine in them), from one linear solve on those columns (shape prior included).
+    ``arrays``, ``targets`` (n, 3, B) and ``weights`` (n, B) can be given in the working precision."""
     free = np.flatnonzero(obj.free_coeffs)
     if not (len(free) or obj.fit_transl):
         return state
     state = state.copy()
     batch = len(state.pose)
-    arrays = dense.dense_points(body, obj.points)
+    if arrays is None:
+        arrays = dense.dense_points(body, obj.points)
+    if targets is None:
+        targets = np.moveaxis(obj.targets, 0, -1).astype(arrays.dtype)
+    if weights is None:
+        weights = obj.weights.T.astype(arrays.dtype)
     posed = dense.pose(body, arrays, body.full_pose(state.pose), state.coeffs, state.transl)
-    n = arrays.count
-    blocks = [np.moveaxis(dense.coefficient_jacobian(body, obj.points, arrays, posed)[:, :, free], -1, 0)]
+    k = len(free)
+    size = k + 3 if obj.fit_transl else k
+    hess = np.zeros((batch, size, size))
+    grad = np.zeros((batch, size))
+    res = (posed.points - targets) * weights[:, None]  # (n, 3, B) weighted residuals
+    if k:
+        cj = dense.coefficient_jacobian(body, obj.points, arrays, posed)  # (n, 3, K, B)
+        if k < cj.shape[2]:
+            cj = cj[:, :, free]
+        cw = cj * np.sqrt(weights)[:, None, None, :]
+        flat = np.ascontiguousarray(np.moveaxis(cw, -1, 0)).reshape(batch, -1, k)  # (B, 3 n, K')
+        hess[:, :k, :k] = np.swapaxes(flat, 1, 2) @ flat
+        grad[:, :k] = np.einsum("nckb,ncb->bk", cj, res)
+        if obj.fit_transl:
+            hess[:, :k, k:] = np.einsum("nckb,nb->bkc", cj, weights)
+            hess[:, k:, :k] = np.swapaxes(hess[:, :k, k:], 1, 2)
     if obj.fit_transl:
-        blocks.append(np.broadcast_to(np.eye(3), (batch, n, 3, 3)))
-    jac = np.concatenate(blocks, axis=-1).reshape(batch, 3 * n, -1)  # (B, 3 n, K' + 3)
-    sw = np.sqrt(np.repeat(obj.weights, 3, axis=1))[..., None]
-    res = np.moveaxis(posed.points - np.moveaxis(obj.targets, 0, -1), -1, 0).reshape(batch, 3 * n, 1)
-    jw = jac * sw
-    hess = np.matmul(np.swapaxes(jw, 1, 2), jw)
-    grad = np.matmul(np.swapaxes(jw, 1, 2), res * sw)[..., 0]
-    if obj.shape_prior:
-        k = len(free)
-        hess[:, np.arange(k), np.arange(k)] += obj.shape_prior
-        grad[:, :k] += obj.shape_prior * state.coeffs[:, free]
-    shared = np.zeros(hess.shape[1], bool)
-    shared[: len(free)] = obj.shared[free]
+        hess[:, k:, k:] = weights.sum(0)[:, None, None] * np.eye(3)
+        grad[:, k:] = res.sum(0).T
+    import os
+
+    extra = float(os.environ.get("INIT_PRIOR", "0")) * weights.sum(0)[:, None]
+    if (obj.shape_prior or extra.any()) and k:
+        hess[:, np.arange(k), np.arange(k)] += obj.shape_prior + extra
+        grad[:, :k] += (obj.shape_prior + extra) * state.coeffs[:, free]
+    shared = np.zeros(size, bool)
+    shared[:k] = obj.shared[free]
     if batch == 1:
         shared[:] = False
     step = _step(hess, grad, np.full(batch, 1e-9), shared)
-    state.coeffs[:, free] += step[:, : len(free)]
+    state.coeffs[:, free] += step[:, :k]
     if obj.fit_transl:
-        state.transl += step[:, len(free) :]
+        state.transl += step[:, k:]
     return state

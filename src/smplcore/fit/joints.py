@@ -16,8 +16,9 @@ import numpy as np
 from smplcore.errors import ShapeError
 from smplcore.fit.body import FitBody, pose_points
 from smplcore.fit.gauss_newton import refine
-from smplcore.fit.initialize import kabsch, rotation_log, shape_and_translation
+from smplcore.fit.initialize import kabsch, shape_and_translation
 from smplcore.fit.result import FitResult, as_array, params_to_state, single_threaded_blas, state_to_params
+from smplcore.fit.rotations import rotation_log
 from smplcore.fit.solver import Objective, State
 from smplcore.fit.vertices import _weights, coefficient_masks
 

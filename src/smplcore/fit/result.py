@@ -67,12 +67,13 @@ def is_torch_model(model: Any) -> bool:
     return torch is not None and isinstance(model, torch.nn.Module)
 
 
-def as_array(value: Any, name: str) -> np.ndarray:
-    """``value`` (NumPy, torch, nested lists) as a finite float64 NumPy array; errors name ``name``."""
+def as_array(value: Any, name: str, dtype: Any = np.float64) -> np.ndarray:
+    """``value`` (NumPy, torch, nested lists) as a finite NumPy array of ``dtype`` (float64 by default; not
+    copied when it already is one); errors name ``name``."""
     if hasattr(value, "detach"):
         value = value.detach().cpu().numpy()
     try:
-        array = np.asarray(value, dtype=np.float64)
+        array = np.asarray(value, dtype=dtype)
     except (TypeError, ValueError) as exc:
         raise ShapeError(f"{name}: expected a numeric array, got {type(value).__name__}") from exc
     if not np.all(np.isfinite(array)):

@@ -32,6 +32,14 @@ class State:
     def copy(self) -> State:
         return State(self.pose.copy(), self.coeffs.copy(), self.transl.copy())
 
+    def take(self, rows: np.ndarray) -> State:
+        """The bodies ``rows`` (a copy)."""
+        return State(self.pose[rows], self.coeffs[rows], self.transl[rows])
+
+    def put(self, rows: np.ndarray, part: State) -> None:
+        """Set the bodies ``rows`` to ``part``'s."""
+        self.pose[rows], self.coeffs[rows], self.transl[rows] = part.pose, part.coeffs, part.transl
+
 
 @dataclass
 class Objective:
