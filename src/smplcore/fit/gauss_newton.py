@@ -88,13 +88,12 @@ class _Problem:
         :mod:`smplcore.fit.normal_matrix`), scaled to the whole set, plus the priors' diagonal."""
         body, hobj = self.body, self.hobj
         posed = dense.pose(body, self.harrays, body.full_pose(state.pose), state.coeffs, state.transl)
-        hess = normal_matrix(body, hobj.points, self.harrays, posed, hobj.weights[rows])
+        weights = hobj.weights[rows] * self.ratio[rows, None]
+        hess = normal_matrix(body, hobj.points, self.harrays, posed, weights, self.select)
         if self.transform is not None:
             hess = self.transform.T @ hess @ self.transform
-        elif self.select is not None:
-            hess = hess[:, self.select[:, None], self.select[None, :]]
-        hess *= self.ratio[rows, None, None]
-        return hess + self._prior(rows)[:, :, None] * np.eye(len(self.cols))
+        np.einsum("bii->bi", hess)[...] += self._prior(rows)
+        return hess
 
     def _columns(self, jac: np.ndarray) -> np.ndarray:
         """The fitted parameters' columns of a Jacobian (or gradient) over [θ, coeffs, transl]."""
@@ -182,7 +181,7 @@ def _solve(body, problem, x, rows, shared_cols, coupled, max_iter, tol, step_tol
     if coupled:
         converged[:] = converged.all()
     damping = np.full(len(rows), 1e-4)
-    hess = None
+    hess: np.ndarray | None = None
     fresh = np.zeros(len(rows), bool)  # the Gauss-Newton matrix was computed at the current state
     age = np.zeros(len(rows), np.int64)
     iterations = 0
@@ -192,13 +191,16 @@ def _solve(body, problem, x, rows, shared_cols, coupled, max_iter, tol, step_tol
             break
         iterations += 1
         sub = rows[active]
-        if hess is None:
-            hess = np.zeros((len(rows), len(cols), len(cols)))
         stale = active[~fresh[active] & ((age[active] >= every) | (iterations == 1))]
-        if len(stale):
+        if len(stale) == len(rows):  # every body: no copy
+            hess = problem.hessian(_unflat(body, x), rows)
+        elif len(stale):
+            assert hess is not None  # the first iteration computes every body's
             hess[stale] = problem.hessian(_unflat(body, x[stale]), rows[stale])
-            fresh[stale], age[stale] = True, 0
-        step = _step(hess[active], grad[active], damping[active], shared_cols)
+        fresh[stale], age[stale] = True, 0
+        assert hess is not None
+        everyone = len(active) == len(rows)
+        step = _step(hess if everyone else hess[active], grad[active], damping[active], shared_cols)
         trial = x[active].copy()
         trial[:, cols] += step
         new_cost, new_grad, new_dist = problem.evaluate(_unflat(body, trial), sub)

@@ -16,6 +16,7 @@ and the gradient stay exact (:mod:`smplcore.fit.dense`), so the fixed point does
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -85,18 +86,38 @@ def _group(body: FitBody, pts: Points, rows: np.ndarray, joints: np.ndarray) -> 
     return _Group(rows, joints, carried, carried.sum(-1), corrective, posedirs, columns)
 
 
+_WORKSPACE = threading.local()
+
+
+def _zeroed(shape: tuple[int, ...]) -> np.ndarray:
+    """A zeroed float64 array of ``shape``, reusing this thread's last one of that shape: a fresh array of
+    tens of megabytes costs a page fault per 4 kB at its first touch, more than the sums written into it."""
+    cached = getattr(_WORKSPACE, "array", None)
+    if cached is None or cached.shape != shape:
+        cached = _WORKSPACE.array = np.zeros(shape)
+    else:
+        cached.fill(0.0)
+    return cached
+
+
 def _batch_last(a: np.ndarray, dtype: np.dtype) -> np.ndarray:
     """(B, ...) → contiguous (..., B) in ``dtype``."""
     return np.ascontiguousarray(np.moveaxis(a, 0, -1), dtype=dtype)
 
 
 def normal_matrix(
-    body: FitBody, pts: Points, arrays: dense.DensePoints, posed: dense.Posed, weights: np.ndarray
+    body: FitBody,
+    pts: Points,
+    arrays: dense.DensePoints,
+    posed: dense.Posed,
+    weights: np.ndarray,
+    columns: np.ndarray | None = None,
 ) -> np.ndarray:
-    """(B, 3 J + K + 3, 3 J + K + 3) Gauss–Newton matrix over [θ (joint-major axis-angle), coeffs, transl]
-    of the points ``pts`` posed as ``posed`` (:func:`smplcore.fit.dense.pose` of ``arrays``) with (B, n)
-    point weights (see the module docstring for what is left out). The Jacobian is built batch last (every
-    elementwise product runs over the bodies), in the posed arrays' precision; the sum is float64."""
+    """(B, P, P) Gauss–Newton matrix over the ``columns`` (default all) of [θ (joint-major axis-angle),
+    coeffs, transl] (P = 3 J + K + 3) of the points ``pts`` posed as ``posed`` (:func:`smplcore.fit.dense.pose`
+    of ``arrays``) with (B, n) point weights (see the module docstring for what is left out). The Jacobian
+    is built batch last (every elementwise product runs over the bodies), in the posed arrays' precision;
+    the sum is float64 and contiguous."""
     batch, num_joints = posed.theta.shape[:2]
     k = arrays.num_coeffs
     f = posed.rest.dtype
@@ -111,7 +132,11 @@ def normal_matrix(
         slopes = _batch_last(posed.kin.slopes, f).reshape(num_joints - 1, 9, 3 * batch)
     coeff_jac = dense.coefficient_jacobian(body, pts, arrays, posed)  # (n, 3, K, B)
     total = 3 * num_joints + k + 3
-    out = np.zeros((total, total, batch))  # batch last: each block added is a run of B values
+    position = np.arange(total) if columns is None else np.full(total, -1)
+    if columns is not None:
+        position[columns] = np.arange(len(columns))
+    size_out = total if columns is None else len(columns)
+    out = _zeroed((size_out, size_out, batch))  # batch last: each block added is a run of B values
     for g in _groups(body, pts):
         size, r = len(g.rows), len(g.joints)
         # x_im: each point moved by each of its influences alone, then u_ir = Σ_m c_irm x_im − c_ir p_r
@@ -138,5 +163,9 @@ def normal_matrix(
         jac *= root_w[g.rows, None, None]
         flat = np.ascontiguousarray(np.moveaxis(jac, -1, 0)).reshape(batch, 3 * size, -1)
         gram = np.swapaxes(flat, 1, 2) @ flat
-        out[g.columns[:, None], g.columns[None, :]] += np.moveaxis(gram, 0, -1)
-    return np.moveaxis(out, -1, 0)
+        at = position[g.columns]
+        kept = at >= 0
+        if not kept.all():
+            gram, at = gram[:, kept][:, :, kept], at[kept]
+        out[at[:, None], at[None, :]] += np.moveaxis(gram, 0, -1)
+    return np.ascontiguousarray(np.moveaxis(out, -1, 0))

@@ -51,14 +51,23 @@ def single_threaded_blas(fn: Callable) -> Callable:
 
     @functools.wraps(fn)
     def run(*args: Any, **kwargs: Any) -> Any:
-        try:
-            from threadpoolctl import threadpool_limits
-        except ImportError:  # optional: without it BLAS keeps its own threading
+        controller = _blas_controller()
+        if controller is None:  # optional: without threadpoolctl BLAS keeps its own threading
             return fn(*args, **kwargs)
-        with threadpool_limits(limits=1, user_api="blas"):
+        with controller.limit(limits=1, user_api="blas"):
             return fn(*args, **kwargs)
 
     return run
+
+
+@functools.cache
+def _blas_controller() -> Any:
+    """threadpoolctl's view of the loaded thread pools, found once (a search of the loaded libraries)."""
+    try:
+        from threadpoolctl import ThreadpoolController
+    except ImportError:
+        return None
+    return ThreadpoolController()
 
 
 def is_torch_model(model: Any) -> bool:

@@ -166,12 +166,13 @@ def normal_equations(
 
 def _step(hess: np.ndarray, grad: np.ndarray, damping: np.ndarray, shared_cols: np.ndarray) -> np.ndarray:
     """Damped Gauss–Newton step of each body; columns ``shared_cols`` get one value for the whole batch."""
-    diag = np.diagonal(hess, axis1=1, axis2=2)
-    damped = hess + (damping[:, None] * (diag + 1e-9))[:, :, None] * np.eye(hess.shape[1])
+    damped = hess.copy()
+    diag = np.einsum("bii->bi", damped)
+    diag += damping[:, None] * (diag + 1e-9)
     if not shared_cols.any():
         return -np.linalg.solve(damped, grad[..., None])[..., 0]
-    s, p = shared_cols, ~shared_cols
-    hpp, hps, hss = damped[:, p][:, :, p], damped[:, p][:, :, s], damped[:, s][:, :, s]
+    s, p = np.flatnonzero(shared_cols), np.flatnonzero(~shared_cols)
+    hpp, hps, hss = damped[:, p[:, None], p], damped[:, p[:, None], s], damped[:, s[:, None], s]
     gp, gs = grad[:, p], grad[:, s]
     sol = np.linalg.solve(hpp, np.concatenate([hps, gp[..., None]], axis=-1))  # Hpp⁻¹ [Hps, gp]
     hinv_hps, hinv_gp = sol[..., :-1], sol[..., -1]
