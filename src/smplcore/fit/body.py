@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import scipy.sparse as sp
 
 from smplcore.engine import KinematicTree, rodrigues, world_transforms
 
@@ -77,6 +78,7 @@ class FitBody:
     weights: np.ndarray  # (V + J, m)
     joint_template: np.ndarray  # (J, 3)
     joint_shape: np.ndarray  # (J, 3, K)
+    regressor: sp.csr_matrix  # (J, V) the joint regressor
     blocks: tuple[PoseBlock, ...]
     pose_mean: np.ndarray  # (3 J,)
     pose_map: np.ndarray | None  # (Q, 3 J) full pose = pose_mean + q @ pose_map; None: identity
@@ -181,6 +183,7 @@ class FitBody:
             weights=point_w,
             joint_template=joint_template,
             joint_shape=joint_shape,
+            regressor=sp.csr_matrix(regressor),
             blocks=tuple(blocks),
             pose_mean=np.asarray(setup.pose_mean, f64).reshape(-1),
             pose_map=pose_map,

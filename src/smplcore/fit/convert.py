@@ -42,17 +42,24 @@ class Correspondence:
     distance: np.ndarray  # (V_t,)
     kind: str
 
-    def apply(self, vertices: np.ndarray) -> np.ndarray:
-        """(B, V_t, 3) target-vertex positions from (B, V_s, 3) source vertices."""
-        return np.einsum("vc,bvcd->bvd", self.weights, vertices[:, self.indices])
+    def apply(self, vertices: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        """(B, V_t, 3) target-vertex positions from (B, V_s, 3) source vertices (only the target vertices
+        ``rows`` when given), in the source vertices' precision."""
+        indices, weights = (self.indices, self.weights) if rows is None else (self.indices[rows], self.weights[rows])
+        weights = weights.astype(vertices.dtype)
+        out = weights[:, 0, None] * vertices[:, indices[:, 0]]
+        for c in range(1, indices.shape[1]):
+            out += weights[:, c, None] * vertices[:, indices[:, c]]
+        return out
 
 
 def _source_vertices(model: Any, params: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """The source's (B, V, 3) vertices and (B, J', 3) joints as NumPy arrays of its precision."""
     out = model(**params)
     verts, joints = out.vertices, out.joints
     if hasattr(verts, "detach"):
         verts, joints = verts.detach().cpu().numpy(), joints.detach().cpu().numpy()
-    return np.asarray(verts, np.float64), np.asarray(joints, np.float64)
+    return np.asarray(verts), np.asarray(joints)
 
 
 def read_deformation_transfer(path: str | Path, num_source: int, num_target: int) -> Correspondence:
@@ -198,6 +205,7 @@ def convert(
     method: str = "vertices",
     deformation_transfer: str | Path | None = None,
     cache_dir: str | Path | None = None,
+    points: int | None = 2000,
     **fit_options: Any,
 ) -> FitResult:
     """Parameters of ``target_model`` that reproduce ``source_model(**params)``.
@@ -210,7 +218,11 @@ def convert(
         two models share by name).
     deformation_transfer : an official deformation-transfer ``.pkl`` (source → target), optional.
     cache_dir : where computed correspondences are cached.
-    fit_options : passed to :func:`smplcore.fit.fit_vertices` / :func:`smplcore.fit.fit_joints`.
+    points : how many of the target's vertices are fitted (spread over the mesh, every part represented;
+        the parameters of a 10k-vertex mesh are settled by a few thousand of its vertices, ~0.05 mm from
+        the fit to all of them), None for every vertex. The error is always measured on every vertex.
+    fit_options : passed to :func:`smplcore.fit.fit_vertices` (``tol`` defaults to 1e-3 here: a converted
+        body settles within a few µm of its optimum) / :func:`smplcore.fit.fit_joints`.
 
     Returns
     -------
@@ -245,4 +257,15 @@ def convert(
         raise ValueError(f"method: expected 'vertices' or 'joints', got {method!r}")
     corr = correspondence(source_model, target_model, deformation_transfer=deformation_transfer, cache_dir=cache_dir)
     mapped = corr.apply(verts)
-    return fit_vertices(target_model, mapped, **fit_options)
+    target = FitBody.from_model(target_model)
+    if points is None or points >= target.num_vertices:
+        return fit_vertices(target_model, mapped, **{"tol": 1e-3, **fit_options})
+    from smplcore.fit.vertices import spread_subset
+
+    ids = spread_subset(target, np.arange(target.num_vertices), int(points), per_part=16)
+    result = fit_vertices(target_model, mapped[:, ids], vertex_ids=ids, **{"tol": 1e-3, **fit_options})
+    fitted = target_model(**result.params).vertices
+    if hasattr(fitted, "detach"):
+        fitted = fitted.detach().cpu().numpy()
+    result.vertex_error = np.sqrt(np.einsum("bvc,bvc->bv", fitted - mapped, fitted - mapped)).mean(1)
+    return result

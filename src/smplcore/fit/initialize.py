@@ -47,31 +47,75 @@ def _rotations_from_moments(
     return rot, middle / safe[..., 0, 0]
 
 
+# Regressed joints weigh this share of their part's points in the initial rotations (see anchor_weights);
+# bones shorter than _ANCHOR_BONE (metres) weigh less, in proportion to their length².
+_ANCHOR = 0.2
+_ANCHOR_BONE = 0.1
+
+
+def anchor_weights(body: FitBody, pts: Points, weights: np.ndarray) -> np.ndarray:
+    """(J, B) weight of the regressed joints (the ends of each part's bones) in each part's rotation:
+    ``_ANCHOR`` of the part's own weight (enough to settle the parts whose points are few or blended, such
+    as the collars of a smoothly skinned model, little enough not to disturb the others), times a trust
+    that falls with the square of the shortest bone below ``_ANCHOR_BONE`` (a regressed joint is good to a
+    few millimetres, a finger bone is a few centimetres long)."""
+    share = part_membership(body, pts) @ weights.T  # (J, B)
+    bone = np.linalg.norm(body.joint_template - body.joint_template[np.maximum(body.parents, 0)], axis=1)
+    bone = np.where(body.parents >= 0, bone, np.inf)
+    shortest = np.array(
+        [min([bone[j]] + [bone[c] for c in np.flatnonzero(body.parents == j)]) for j in range(len(bone))]
+    )
+    trust = np.minimum(1.0, (shortest / _ANCHOR_BONE) ** 2)
+    return _ANCHOR * np.maximum(share, 1.0) * trust[:, None]
+
+
 def part_membership(body: FitBody, pts: Points) -> np.ndarray:
-    """(J, n): the weight of each point in each part (the points a joint moves with at least half the weight)."""
+    """(J, n): the weight of each point in each part (each point belongs to the joint that moves it most,
+    with that joint's skinning weight)."""
 
     def build() -> np.ndarray:
-        n = len(pts.ids)
-        membership = np.zeros((n, body.num_joints))
-        for m in range(pts.joints.shape[1]):
-            np.add.at(membership, (np.arange(n), pts.joints[:, m]), pts.weights[:, m])
-        import os
-
-        pw = float(os.environ.get("MEMB_POW", "1"))
-        return np.ascontiguousarray(np.where(membership >= 0.5, membership**pw, 0.0).T)
+        membership = np.zeros((body.num_joints, len(pts.ids)))
+        membership[pts.joints[:, 0], np.arange(len(pts.ids))] = pts.weights[:, 0]
+        return membership
 
     return body.cached(("membership", pts.ids.tobytes()), build)
 
 
-def part_rotations(body: FitBody, pts: Points, rest: np.ndarray, targets: np.ndarray, weights: np.ndarray):
+def _bones(body: FitBody) -> np.ndarray:
+    """(J, J): ``[j, a]`` = 1 when joint ``a`` is joint ``j`` or one of its children (the joints that part
+    ``j``'s rigid motion carries)."""
+    bones = np.eye(body.num_joints)
+    for a, p in enumerate(body.parents):
+        if p >= 0:
+            bones[p, a] = 1.0
+    return bones
+
+
+def part_rotations(
+    body: FitBody,
+    pts: Points,
+    rest: np.ndarray,
+    targets: np.ndarray,
+    weights: np.ndarray,
+    anchors: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+):
     """World rotation (B, J, 3, 3) of each part and whether it was determined (B, J), from (n, 3, B) rest
-    points and targets (batch last) and (n, B) weights."""
+    points and targets (batch last) and (n, B) weights; ``anchors``: (J, 3, B) rest joints, their (J, 3, B)
+    targets and (J, B) weights, added to the part of each joint and of its parent (a bone's direction fixes
+    the parts whose own points are few or blended)."""
     n, batch = weights.shape
     membership = part_membership(body, pts).astype(rest.dtype)  # (J, n)
     wt = targets * weights[:, None, :]
     outer = (wt[:, :, None, :] * rest[:, None, :, :]).reshape(n, 9 * batch)  # Σ over points of w t sᵀ
     sums = np.concatenate([outer, wt.reshape(n, -1), (rest * weights[:, None]).reshape(n, -1), weights], axis=1)
     parts = (membership @ sums).astype(np.float64)  # (J, (9 + 3 + 3 + 1) B): one product for every sum
+    if anchors is not None:  # per part, the sums over its bones' ends, each with the part's weight
+        a_rest, a_target, a_weight = anchors  # (J, 3, B), (J, 3, B), (J_part, B)
+        num = len(a_rest)
+        outer_a = (a_target[:, :, None] * a_rest[:, None]).reshape(num, 9, batch)
+        ones = np.ones((num, 1, batch))
+        per_joint = np.concatenate([outer_a, a_target, a_rest, ones], axis=1)  # (J, 16, B)
+        parts += np.einsum("ja,jb,akb->jkb", _bones(body), a_weight, per_joint).reshape(num, -1)
     num_joints = body.num_joints
     moments = np.moveaxis(parts[:, : 9 * batch].reshape(num_joints, 3, 3, batch), -1, 0)
     target_sum = np.moveaxis(parts[:, 9 * batch : 12 * batch].reshape(num_joints, 3, batch), -1, 0)
@@ -82,12 +126,20 @@ def part_rotations(body: FitBody, pts: Points, rest: np.ndarray, targets: np.nda
 
 
 def initialize(
-    body: FitBody, obj: Objective, state: State, *, iterations: int = 3, dtype: npt.DTypeLike = np.float64
+    body: FitBody,
+    obj: Objective,
+    state: State,
+    *,
+    iterations: int = 3,
+    dtype: npt.DTypeLike = np.float64,
+    joints: np.ndarray | None = None,
 ) -> State:
     """Alternate per-part Procrustes rotations and a linear solve for the shape and translation.
 
     ``state`` gives the starting shape (and the pose of undetermined parts); returns a new state.
-    Products over the points run in ``dtype``.
+    Products over the points run in ``dtype``. ``joints``: (B, J, 3) estimates of the posed skeleton
+    joints (e.g. the joint regressor applied to target vertices), which join each part's rotation as
+    the ends of its bones, weighted as the part's points.
     """
     pts = obj.points
     state = state.copy()
@@ -95,10 +147,18 @@ def initialize(
     arrays = dense.dense_points(body, pts, dtype)
     targets = np.ascontiguousarray(np.moveaxis(obj.targets, 0, -1), dtype=arrays.dtype)  # (n, 3, B)
     weights = np.ascontiguousarray(obj.weights.T, dtype=arrays.dtype)  # (n, B)
+    anchor_target = anchor_weight = None
+    if joints is not None:
+        anchor_target = np.ascontiguousarray(np.moveaxis(joints, 0, -1))  # (J, 3, B)
+        anchor_weight = anchor_weights(body, pts, obj.weights)
     for _ in range(iterations):
         theta = body.full_pose(state.pose)
         posed = dense.pose(body, arrays, theta, state.coeffs, state.transl)
-        world, known = part_rotations(body, pts, posed.rest, targets, weights)
+        anchors = None
+        if anchor_target is not None and anchor_weight is not None:
+            rest_joints = body.joint_template + np.einsum("jck,bk->bjc", body.joint_shape, state.coeffs)
+            anchors = (np.moveaxis(rest_joints, 0, -1), anchor_target, anchor_weight)
+        world, known = part_rotations(body, pts, posed.rest, targets, weights, anchors)
         # a part without enough points keeps its current local rotation
         rot = posed.rot
         current_world = np.where(known[..., None, None], world, posed.world)

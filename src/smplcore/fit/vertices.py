@@ -130,6 +130,21 @@ def model_distances(model: Any, body: FitBody, state: State, point_ids: np.ndarr
     return np.sqrt(np.einsum("bnc,bnc->bn", diff, diff))
 
 
+def regressed_joints(body: FitBody, point_ids: np.ndarray, targets: np.ndarray, weights: np.ndarray):
+    """(B, J, 3) the joint regressor applied to the target vertices — the posed skeleton to a few
+    millimetres — when the targets hold every vertex it reads (with positive weight), else None."""
+    reg = body.regressor
+    needed = np.unique(reg.indices)
+    at = np.full(body.num_vertices, -1)
+    mesh = np.flatnonzero(point_ids < body.num_vertices)
+    at[point_ids[mesh]] = mesh
+    rows = at[needed]
+    if np.any(rows < 0) or np.any(weights[:, rows] <= 0):
+        return None
+    picked = reg[:, needed]  # (J, m)
+    return np.einsum("jm,bmc->bjc", picked.toarray(), targets[:, rows], dtype=np.float64)
+
+
 def _floor(dtype: type) -> float:
     """Cost per unit weight (m²) of a fit as exact as the working precision allows: RMS 0.2 µm in
     float64, 2 µm in float32 (whose posed vertices alone are good to ~0.5 µm)."""
@@ -187,7 +202,8 @@ def solve(
         sub = objective(subset, bodies=rows)
         part = state.take(rows)
         if init_iterations:
-            part = initialize(body, sub, part, iterations=init_iterations, dtype=dtype)
+            guess = None if joints is None else joints[rows]
+            part = initialize(body, sub, part, iterations=init_iterations, dtype=dtype, joints=guess)
         part, _, part_dist, converged[rows], its = refine(
             body, sub, part, dtype=dtype, max_iter=max_iter, tol=tol, hessian_every=_HESSIAN_EVERY
         )
@@ -196,6 +212,7 @@ def solve(
             dist[rows] = part_dist
         return its
 
+    joints = regressed_joints(body, point_ids, targets, weights)
     parts = [np.arange(batch)] if shared.any() else chunks(batch, workers)
     iterations = max(map_chunks(subset_stage, parts, workers))
     if whole:
