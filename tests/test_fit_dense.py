@@ -53,3 +53,36 @@ def test_float32_products_stay_close(fake_models):
     single = dense.pose(body, dense.dense_points(body, pts, np.float32), theta, coeffs, transl).points
     assert single.dtype == np.float32
     assert np.abs(single - exact).max() < 1e-5  # metres: float32 resolution of a posed mesh
+
+
+def test_normal_matrix_of_chosen_columns(fake_models):
+    body = FitBody.from_model(_model(fake_models, "smplx"))
+    rng = np.random.default_rng(3)
+    ids = np.sort(rng.choice(body.num_vertices, 120, replace=False))
+    pts = body.points(ids)
+    theta = rng.normal(0, 0.4, (2, body.num_joints, 3))
+    coeffs, transl = rng.normal(0, 1, (2, body.num_coeffs)), rng.normal(0, 1, (2, 3))
+    arrays = dense.dense_points(body, pts)
+    posed = dense.pose(body, arrays, theta, coeffs, transl)
+    weights = rng.uniform(0, 1, (2, len(ids)))
+    full = normal_matrix(body, pts, arrays, posed, weights)
+    columns = np.sort(rng.choice(full.shape[1], 40, replace=False))  # pose, shape and translation mixed
+    np.testing.assert_allclose(
+        normal_matrix(body, pts, arrays, posed, weights, columns), full[:, columns[:, None], columns], rtol=1e-12
+    )
+
+
+def test_kinematics_slopes_are_the_derivatives_of_the_features(fake_models):
+    from smplcore.engine import rodrigues
+    from smplcore.fit.kinematics import kinematics
+
+    body = FitBody.from_model(_model(fake_models, "smpl"))
+    rng = np.random.default_rng(4)
+    theta = rng.normal(0, 0.5, (2, body.num_joints, 3))
+    kin = kinematics(body, theta, np.zeros((2, body.num_coeffs)))
+    step = 1e-6
+    for a in range(3):
+        moved = theta.copy()
+        moved[..., a] += step
+        numeric = (rodrigues(moved[:, 1:]) - rodrigues(theta[:, 1:] - np.eye(3)[a] * step)) / (2 * step)
+        np.testing.assert_allclose(kin.slopes[..., a], numeric.reshape(2, -1, 9), atol=1e-8)

@@ -125,7 +125,7 @@ def refine(
     tol: float = 1e-8,
     step_tol: float = 1e-7,
     abs_tol: float | None = None,
-    hessian_every: int | None = 1,
+    hessian_every: int = 1,
     workers: int | None = 1,
 ) -> tuple[State, np.ndarray, np.ndarray, np.ndarray, int]:
     """Minimise ``obj`` from ``state`` (see the module docstring; ``hessian_obj`` is the subset objective,
@@ -191,8 +191,7 @@ def _solve(body, problem, x, rows, shared_cols, coupled, max_iter, tol, step_tol
             break
         iterations += 1
         sub = rows[active]
-        due = (age[active] >= every) if every is not None else np.zeros(len(active), bool)
-        stale = active[~fresh[active] & (due | (iterations == 1))]
+        stale = active[~fresh[active] & ((age[active] >= every) | (iterations == 1))]
         if len(stale) == len(rows):  # every body: no copy
             hess = problem.hessian(_unflat(body, x), rows)
         elif len(stale):
@@ -220,8 +219,7 @@ def _solve(body, problem, x, rows, shared_cols, coupled, max_iter, tol, step_tol
         fresh[keep] = False
         age[active] += 1
         # a rejected step, or one that moved far (the linearisation has changed): a new matrix next time
-        if every is not None:
-            age[active[~better | (np.max(np.abs(step), axis=1) > _FAR)]] = every
+        age[active[~better | (np.max(np.abs(step), axis=1) > _FAR)]] = every
         damping[active] = np.where(better, np.maximum(damping[active] / 3, 1e-9), damping[active] * 10)
         done = (better & ((decrease < tol) | small | tiny)) | (~better & (damping[active] > 1e8))
         done |= cost[active] <= abs_tol * scale[active]  # at the precision's floor: steps only add noise

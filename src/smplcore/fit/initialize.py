@@ -49,7 +49,7 @@ def _rotations_from_moments(
 
 # Regressed joints weigh this share of their part's points in the initial rotations (see anchor_weights);
 # bones shorter than _ANCHOR_BONE (metres) weigh less, in proportion to their length².
-_ANCHOR = 0.2
+_ANCHOR = 0.05
 _ANCHOR_BONE = 0.1
 
 
