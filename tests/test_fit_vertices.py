@@ -243,9 +243,9 @@ def test_threads_give_the_same_fit(fake_models):
     target = model(**_random_params(model, 40, rng)).vertices
     one = fit.fit_vertices(model, target, workers=1)
     two = fit.fit_vertices(model, target, workers=2)
-    for name in one.params:
-        np.testing.assert_array_equal(one.params[name], two.params[name])
-    np.testing.assert_array_equal(one.vertex_error, two.vertex_error)
+    for name in one.params:  # the same iterations; products over chunks of bodies round differently
+        np.testing.assert_allclose(one.params[name], two.params[name], atol=1e-9)
+    np.testing.assert_allclose(one.vertex_error, two.vertex_error, atol=1e-9)
 
 
 def test_regressed_joints_need_every_vertex_the_regressor_reads(fake_models):
