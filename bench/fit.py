@@ -1,23 +1,33 @@
-"""Fitting benchmark: smplcore.fit against smplfitter 0.6 and an SMPLify3D-style Adam loop, in one run.
+"""Fitting benchmark: smplcore.fit against smplfitter 0.6, an SMPLify3D-style Adam loop and an SMPLify-style
+LBFGS loop, every contender in a process of its own (its peak memory measured alone), the same targets.
 
     python bench/fit.py [--quick] [--out bench/FIT_RESULTS.md]
 
-Cases (float32 targets made by the same model, the same targets for every contender):
-- vertices → parameters on fake official SMPL and SMPL-X files and the open model: smplcore.fit.fit_vertices
+Cases (float32 targets made by a model, the same for every contender: seeded):
+- vertices → parameters on fake official SMPL and SMPL-X files and the open model, B = 128 (and SMPL at
+  B = 1024): smplcore.fit.fit_vertices (the default, exact; and ``max_iter=0``, the closed form alone)
   against smplfitter's BodyFitter (1 and 3 iterations);
 - 22 joints → parameters, a 256-frame sequence on the open model: smplcore.fit.fit_joints against a
-  joints2smpl-style Adam loop (150 iterations over joint MSE + a pose L2 prior, torch autograd);
-- COCO-17 2D keypoints (1 px noise, known camera) on the open model: smplcore.fit.fit_keypoints against an
-  SMPLify-style torch LBFGS loop (bench/fit_keypoints_case.py, which also runs alone).
-Errors are mean per-vertex (per-joint) distances per body: mean and 95th percentile over bodies.
+  joints2smpl-style Adam loop (150 iterations over joint MSE + small L2 priors, torch autograd), and the
+  same loop run until it reaches smplcore's error (or gives up at 3,000 iterations);
+- COCO-17 2D keypoints (1 px noise, known camera) on the open model: bench/fit_keypoints_case.py;
+- conversion: open model (neutral) → open model (male), shared mesh, different shape space (a real
+  conversion's residual), and fake SMPL → fake SMPL-X through the map smplcore computes from the two
+  templates, given to both contenders as an official-format deformation-transfer file (the fake meshes are
+  unrelated random geometry: the residual is large, the speed is what is measured).
+Errors are mean distances per body (vertices, joints): mean and 95th percentile over bodies.
+Times: the best of three runs after a warm-up. Peak memory: the process's resident-set growth during the
+runs (Linux ``clear_refs``). "smplcore ×" is the fits/s of the fastest smplcore row of the case whose
+error is at most the contender's, over the contender's.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import platform
-import resource
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -30,6 +40,8 @@ import fixtures  # noqa: E402
 
 import smplcore  # noqa: E402
 from smplcore import fit  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
 
 
 def cpu_name() -> str:
@@ -50,49 +62,95 @@ def random_params(model, batch: int, rng: np.random.Generator) -> dict:
     return {k: v.astype(np.float32) for k, v in params.items()}
 
 
-def stats(err: np.ndarray) -> str:
-    return f"{1000 * err.mean():.3f} / {1000 * np.percentile(err, 95):.3f}"
+def _status(field: str) -> float:
+    """A ``/proc/self/status`` size in MB (0 where there is none)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith(field + ":"):
+                return float(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return 0.0
 
 
-def timed(fn):
-    start = time.perf_counter()
-    out = fn()
-    return out, time.perf_counter() - start
+def timed(fn, runs: int = 3) -> tuple:
+    """``fn()`` after a reset of the peak-memory mark: (last result, best seconds, peak growth MB)."""
+    try:
+        Path("/proc/self/clear_refs").write_text("5")  # VmHWM := VmRSS
+    except OSError:
+        pass
+    base = _status("VmRSS")
+    best, out = float("inf"), None
+    for _ in range(runs):
+        time.sleep(0.3)  # BLAS threads of the previous call stop spinning
+        start = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - start)
+    return out, best, max(0.0, _status("VmHWM") - base)
 
 
-def vertices_case(key: str, batch: int, rows: list, rng) -> None:
-    files = fixtures.prepare(key)
-    opts = {"use_pca": False} if key == "smplx" else {}
+def result(fits_s: float, error: np.ndarray, peak: float, **extra) -> dict:
+    return {
+        "fits_s": fits_s,
+        "mean": float(error.mean()),
+        "p95": float(np.percentile(error, 95)),
+        "peak": peak,
+        **extra,
+    }
+
+
+# -- the jobs (each runs in a process of its own) ------------------------------------------------------------
+
+
+def _model(key: str):
     if key == "open":
-        model = smplcore.BodyModel(model_type="open", dtype=np.float32)
-    else:
-        model = smplcore.BodyModel(str(files.file), dtype=np.float32, **opts)
-    params = random_params(model, batch, rng)
-    target = model(**params).vertices
-    fit.fit_vertices(model, target[:2])  # warm-up: builds the cached fitting arrays, as smplfitter's below
-    r, dt = timed(lambda: fit.fit_vertices(model, target))
-    err = np.linalg.norm(model(**r.params).vertices - target, axis=-1).mean(1)
-    ours = batch / dt
-    rows.append((f"vertices {key} B={batch}", "smplcore fit_vertices", f"{ours:.1f}", stats(err), "1.0"))
+        return smplcore.BodyModel(model_type="open", dtype=np.float32)
+    files = fixtures.prepare(key)
+    return smplcore.BodyModel(str(files.file), dtype=np.float32, **({"use_pca": False} if key == "smplx" else {}))
+
+
+def job_vertices(key: str, batch: int, contender: str) -> dict:
+    model = _model(key)
+    target = model(**random_params(model, batch, np.random.default_rng(batch))).vertices
+    if contender.startswith("smplcore"):
+        options = {"max_iter": 0} if contender == "smplcore-closed" else {}
+        fit.fit_vertices(model, target[:2], **options)  # warm-up: the cached fitting arrays
+        r, dt, peak = timed(lambda: fit.fit_vertices(model, target, **options))
+        err = np.linalg.norm(model(**r.params).vertices - target, axis=-1).mean(1)
+        return result(batch / dt, err, peak, converged=float(np.mean(r.converged)))
     import torch
     from smplfitter.pt import BodyFitter, BodyModel
 
+    files = fixtures.prepare(key)
     name = {"smpl": "smpl", "open": "smpl", "smplx": "smplx"}[key]
     sf_model = BodyModel(name, files.smplfitter_gender, model_root=str(files.smplfitter_root), num_betas=10)
     fitter = BodyFitter(sf_model)
+    iters = int(contender.rsplit("-", 1)[1])
     tv = torch.as_tensor(target)
-    for iters in (1, 3):
-        with torch.no_grad():
-            fitter.fit(tv[:2], num_iter=iters)  # warm-up
-            out, dt = timed(lambda n=iters: fitter.fit(tv, num_iter=n, beta_regularizer=0.0))
-            verts = sf_model(out["pose_rotvecs"], out["shape_betas"], out["trans"])["vertices"].numpy()
-        err = np.linalg.norm(verts - target, axis=-1).mean(1)
-        rate = batch / dt
-        rows.append(("", f"smplfitter {iters} iter", f"{rate:.1f}", stats(err), f"{ours / rate:.2f}"))
+    with torch.no_grad():
+        fitter.fit(tv[:2], num_iter=iters)  # warm-up
+        out, dt, peak = timed(lambda: fitter.fit(tv, num_iter=iters, beta_regularizer=0.0))
+        verts = sf_model(out["pose_rotvecs"], out["shape_betas"], out["trans"])["vertices"].numpy()
+    return result(batch / dt, np.linalg.norm(verts - target, axis=-1).mean(1), peak)
 
 
-def adam_joints(model_t, target, iters: int = 150):
-    """joints2smpl-style: Adam over pose, betas and translation, joint MSE + a small pose prior."""
+def _joint_sequence(frames: int):
+    model = _model("open")
+    base = random_params(model, 1, np.random.default_rng(0))
+    t = np.linspace(0, 1, frames, dtype=np.float32)[:, None]
+    params = {
+        "global_orient": base["global_orient"] + t * np.float32(1.0),
+        "body_pose": base["body_pose"] * (1 + np.sin(6 * t)),
+        "betas": np.repeat(base["betas"], frames, 0),
+        "transl": base["transl"] + t * np.array([1.0, 0, 0], np.float32),
+    }
+    return model, model(**params).joints[:, :22]
+
+
+def adam_joints(model_t, target, iters: int, until: float | None = None, every: int = 25):
+    """joints2smpl-style: Adam over pose, betas and translation, joint MSE + small pose and shape priors.
+    With ``until``: stops at the first check (every ``every`` iterations) whose mean error is ≤ it.
+    Returns the (B,) joint errors and the iterations run."""
     import torch
 
     b = target.shape[0]
@@ -102,80 +160,204 @@ def adam_joints(model_t, target, iters: int = 150):
     betas = torch.zeros(b, 10, requires_grad=True)
     transl = (tgt[:, 0] - model_t(return_verts=False).joints[:, 0]).detach().clone().requires_grad_(True)
     opt = torch.optim.Adam([pose, orient, betas, transl], lr=0.02)
-    for _ in range(iters):
+
+    def errors():
+        with torch.no_grad():
+            j = model_t(body_pose=pose, global_orient=orient, betas=betas, transl=transl, return_verts=False).joints
+        return np.linalg.norm(j[:, :22].numpy() - target, axis=-1).mean(1)
+
+    for it in range(1, iters + 1):
         opt.zero_grad()
         j = model_t(body_pose=pose, global_orient=orient, betas=betas, transl=transl, return_verts=False).joints
         loss = ((j[:, :22] - tgt) ** 2).sum(-1).mean() + 1e-4 * (pose**2).mean() + 1e-4 * (betas**2).mean()
         loss.backward()
         opt.step()
-    with torch.no_grad():
-        j = model_t(body_pose=pose, global_orient=orient, betas=betas, transl=transl, return_verts=False).joints
-    return np.linalg.norm(j[:, :22].numpy() - target, axis=-1).mean(1)
+        if until is not None and it % every == 0 and errors().mean() <= until:
+            return errors(), it
+    return errors(), iters
 
 
-def joints_case(frames: int, rows: list, rng) -> None:
-    import torch
-
-    model = smplcore.BodyModel(model_type="open", dtype=np.float32)
-    base = random_params(model, 1, rng)
-    t = np.linspace(0, 1, frames, dtype=np.float32)[:, None]
-    params = {
-        "global_orient": base["global_orient"] + t * np.float32(1.0),
-        "body_pose": base["body_pose"] * (1 + np.sin(6 * t)),
-        "betas": np.repeat(base["betas"], frames, 0),
-        "transl": base["transl"] + t * np.array([1.0, 0, 0], np.float32),
-    }
-    target = model(**params).joints[:, :22]
-    fit.fit_joints(model, target[:2])  # warm-up
-    r, dt = timed(lambda: fit.fit_joints(model, target, share_betas=True))
-    ours = frames / dt
-    case = f"22 joints, {frames} frames (open)"
-    rows.append((case, "smplcore fit_joints", f"{ours:.1f}", stats(r.joint_error), "1.0"))
-    r0, dt0 = timed(lambda: fit.fit_joints(model, target, share_betas=True, max_iter=0))
-    rows.append(("", "smplcore fit_joints max_iter=0 (closed form)", f"{frames / dt0:.1f}", stats(r0.joint_error), ""))
+def job_joints(frames: int, contender: str, until: float | None = None) -> dict:
+    model, target = _joint_sequence(frames)
+    if contender.startswith("smplcore"):
+        options = {"max_iter": 0} if contender == "smplcore-closed" else {}
+        fit.fit_joints(model, target[:2], **options)
+        r, dt, peak = timed(lambda: fit.fit_joints(model, target, share_betas=True, **options))
+        return result(frames / dt, r.joint_error, peak)
     model_t = smplcore.create(model_type="open")
-    err, dt = timed(lambda: adam_joints(model_t, target))
-    rate = frames / dt
-    rows.append(("", "Adam 150 iterations (torch)", f"{rate:.1f}", stats(err), f"{ours / rate:.2f}"))
-    rows[-2] = (*rows[-2][:4], f"{frames / dt0 / rate:.2f}")
-    del torch
+    if contender == "adam-150":
+        (err, its), dt, peak = timed(lambda: adam_joints(model_t, target, 150), runs=1)
+    else:  # until smplcore's error
+        (err, its), dt, peak = timed(lambda: adam_joints(model_t, target, 3000, until=until), runs=1)
+    return result(frames / dt, err, peak, iterations=its)
+
+
+def _conversion_models(pair: str):
+    if pair == "open-male":
+        return _model("open"), smplcore.BodyModel(model_type="open", gender="male", dtype=np.float32)
+    return _model("smpl"), _model("smplx")
+
+
+def deformation_transfer_file(source, target, folder: Path) -> Path:
+    """smplcore's computed SMPL → SMPL-X map written in the official deformation-transfer format."""
+    import pickle
+
+    import scipy.sparse as sp
+
+    path = folder / "smpl2smplx_deftrafo_setup.pkl"
+    if not path.is_file():
+        corr = fit.correspondence(source, target)
+        rows = np.repeat(np.arange(len(corr.indices)), corr.indices.shape[1])
+        num_source = source.setup.data.v_template.shape[0]
+        mtx = sp.csr_matrix(
+            (corr.weights.reshape(-1), (rows, corr.indices.reshape(-1))), shape=(len(corr.indices), 2 * num_source)
+        )
+        folder.mkdir(parents=True, exist_ok=True)
+        with open(path, "wb") as fh:
+            pickle.dump({"mtx": mtx}, fh, protocol=4)
+    return path
+
+
+def job_convert(pair: str, frames: int, contender: str) -> dict:
+    source, target = _conversion_models(pair)
+    params = random_params(source, frames, np.random.default_rng(7))
+    mapped = source(**params).vertices
+    options = {}
+    if pair == "smpl-smplx":
+        options["deformation_transfer"] = deformation_transfer_file(source, target, fixtures.default_cache() / "dt")
+        mapped = fit.correspondence(source, target, **options).apply(mapped)
+    if contender == "smplcore":
+        fit.convert({k: v[:2] for k, v in params.items()}, source, target, **options)
+        r, dt, peak = timed(lambda: fit.convert(params, source, target, **options))
+        return result(frames / dt, r.vertex_error, peak, converged=float(np.mean(r.converged)))
+    import torch
+    from smplfitter.pt import BodyConverter, BodyModel
+
+    os.environ["SMPLFITTER_BODY_MODELS"] = str(fixtures.default_cache() / "dt")
+    files_in, files_out = fixtures.prepare("smpl"), fixtures.prepare("smplx")
+    sf_in = BodyModel("smpl", "neutral", model_root=str(files_in.smplfitter_root), num_betas=10)
+    sf_out = BodyModel("smplx", "neutral", model_root=str(files_out.smplfitter_root), num_betas=10)
+    converter = BodyConverter(sf_in, sf_out)
+    pose = torch.as_tensor(np.concatenate([params["global_orient"], params["body_pose"]], 1))
+    betas, trans = torch.as_tensor(params["betas"]), torch.as_tensor(params["transl"])
+    iters = int(contender.rsplit("-", 1)[1])
+    with torch.no_grad():
+        converter.convert(pose[:2], betas[:2], trans[:2], num_iter=iters)
+        out, dt, peak = timed(lambda: converter.convert(pose, betas, trans, num_iter=iters))
+        verts = sf_out(out["pose_rotvecs"], out["shape_betas"], out["trans"])["vertices"].numpy()
+    return result(frames / dt, np.linalg.norm(verts - mapped, axis=-1).mean(1), peak)
+
+
+def job_keypoints(count: int) -> dict:
+    from fit_keypoints_case import keypoints_case
+
+    rows: list = []
+    keypoints_case(count, rows, np.random.default_rng(0))
+    return {"rows": rows}
+
+
+JOBS = {"vertices": job_vertices, "joints": job_joints, "convert": job_convert, "keypoints": job_keypoints}
+
+
+def run_job(kind: str, *args) -> dict:
+    """One job in a fresh process: its own imports, threads and peak memory."""
+    cmd = [sys.executable, __file__, "--job", json.dumps([kind, *args])]
+    done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    lines = [line for line in done.stdout.splitlines() if line.startswith("{")]
+    if done.returncode or not lines:
+        return {"failed": (done.stderr.strip().splitlines() or ["no output"])[-1]}
+    return json.loads(lines[-1])
+
+
+# -- the table --------------------------------------------------------------------------------------------------
+
+
+def mm(r: dict) -> str:
+    return f"{1000 * r['mean']:.3f} / {1000 * r['p95']:.3f}" if "mean" in r else "—"
+
+
+def case_rows(case: str, results: list[tuple[str, dict]], ours: tuple[str, ...]) -> list[tuple]:
+    """Rows (case, contender, fits/s, error, peak MB, smplcore ×): the ratio of the fastest smplcore row
+    whose error is at most the contender's."""
+    rows = []
+    for i, (name, r) in enumerate(results):
+        label = case if i == 0 else ""
+        if "failed" in r:
+            rows.append((label, name, "failed: " + r["failed"][:80], "—", "—", "—"))
+            continue
+        ratio = "—"
+        if name not in ours:
+            eligible = [o["fits_s"] for n, o in results if n in ours and "mean" in o and o["mean"] <= r["mean"]]
+            ratio = f"{max(eligible) / r['fits_s']:.1f}" if eligible else "none at ≤ its error"
+        extra = f" ({r['iterations']} it)" if "iterations" in r else ""
+        rows.append((label, name + extra, f"{r['fits_s']:.1f}", mm(r), f"{r['peak']:.0f}", ratio))
+    return rows
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small batches (a smoke test)")
-    parser.add_argument("--large", nargs="*", default=["smpl"], help="models also run at B = 1024")
-    parser.add_argument("--out", default=str(Path(__file__).resolve().parent / "FIT_RESULTS.md"))
+    parser.add_argument("--out", default=str(HERE / "FIT_RESULTS.md"))
+    parser.add_argument("--job", help=argparse.SUPPRESS)
     args = parser.parse_args()
-    rng = np.random.default_rng(0)
-    rows: list = []
-    batch = 8 if args.quick else 128
-    for key in ("smpl", "smplx", "open"):
-        vertices_case(key, batch, rows, rng)
-        print(rows[-3:], flush=True)
-    for key in args.large:
-        vertices_case(key, 32 if args.quick else 1024, rows, rng)
-        print(rows[-3:], flush=True)
-    joints_case(32 if args.quick else 256, rows, rng)
-    print(rows[-2:], flush=True)
-    from fit_keypoints_case import keypoints_case  # the COCO-17 2D case (also runnable alone)
-
-    keypoints_case(8 if args.quick else 32, rows, np.random.default_rng(0))
-    print(rows[-2:], flush=True)
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    if args.job:
+        kind, *job_args = json.loads(args.job)
+        print(json.dumps(JOBS[kind](*job_args)), flush=True)
+        return
+    quick = args.quick
+    started, load0 = time.strftime("%Y-%m-%d %H:%M"), os.getloadavg()
+    rows: list[tuple] = []
+    ours_v = ("smplcore fit_vertices", "smplcore fit_vertices max_iter=0 (closed form)")
+    for key, batch in (("smpl", 128), ("smplx", 128), ("open", 128), ("smpl", 1024)):
+        batch = 16 if quick else batch
+        results = [
+            (ours_v[0], run_job("vertices", key, batch, "smplcore")),
+            (ours_v[1], run_job("vertices", key, batch, "smplcore-closed")),
+            ("smplfitter 1 iter", run_job("vertices", key, batch, "smplfitter-1")),
+            ("smplfitter 3 iter", run_job("vertices", key, batch, "smplfitter-3")),
+        ]
+        rows += case_rows(f"vertices {key} B={batch}", results, ours_v)
+        print(rows[-4:], flush=True)
+    frames = 32 if quick else 256
+    ours_j = ("smplcore fit_joints", "smplcore fit_joints max_iter=0 (closed form)")
+    mine = run_job("joints", frames, "smplcore")
+    results = [
+        (ours_j[0], mine),
+        (ours_j[1], run_job("joints", frames, "smplcore-closed")),
+        ("Adam 150 iterations (torch)", run_job("joints", frames, "adam-150")),
+        ("Adam until smplcore's error", run_job("joints", frames, "adam-until", mine.get("mean"))),
+    ]
+    rows += case_rows(f"22 joints, {frames} frames (open)", results, ours_j)
+    print(rows[-4:], flush=True)
+    # the 2D case's rows: (case, contender, fits/s, error, ratio); its peak memory is not measured
+    rows += [(a, b, c, d, "—", e) for a, b, c, d, e in run_job("keypoints", 8 if quick else 32).get("rows", [])]
+    for pair, frames in (("open-male", 1000), ("smpl-smplx", 256)):
+        frames = 32 if quick else frames
+        results = [("smplcore convert", run_job("convert", pair, frames, "smplcore"))]
+        if pair == "smpl-smplx":
+            results += [
+                (f"smplfitter BodyConverter {n} iter", run_job("convert", pair, frames, f"sf-{n}")) for n in (1, 3)
+            ]
+        rows += case_rows(f"conversion {pair}, {frames} frames", results, ("smplcore convert",))
+        print(rows[-len(results) :], flush=True)
     lines = [
         "# Fitting benchmark",
         "",
-        f"`python bench/fit.py{' --quick' if args.quick else ''}` on {cpu_name()},",
-        "float32 targets from the same model,",
-        f"smplcore {smplcore.__version__}, NumPy {np.__version__}. Errors: mean distance per body (mm), mean / 95th",
-        "percentile over bodies. Ratio: smplcore's fits/s over the contender's (higher: smplcore faster).",
-        f"Peak resident memory of the whole run: {peak:.0f} MB.",
+        f"`python bench/fit.py{' --quick' if quick else ''}` on {cpu_name()}, {started}, load average "
+        f"{load0[0]:.1f} at the start, {os.getloadavg()[0]:.1f} at the end; smplcore {smplcore.__version__}, "
+        f"NumPy {np.__version__}.",
         "",
-        "| case | contender | fits/s | error mm (mean / p95) | smplcore × |",
-        "|---|---|---|---|---|",
+        "Each contender ran in a process of its own on the same seeded targets; fits/s is the best of three runs",
+        "after a warm-up; errors are mean distances per body in mm (mean / 95th percentile over bodies); peak MB",
+        "is the process's resident-set growth during the runs; smplcore × is the fits/s of the fastest smplcore",
+        "row of the case at an error no larger than the contender's, over the contender's.",
+        "",
+        "| case | contender | fits/s | error mm (mean / p95) | peak MB | smplcore × |",
+        "|---|---|---|---|---|---|",
     ]
-    lines += [f"| {a} | {b} | {c} | {d} | {e} |" for a, b, c, d, e in rows]
+    for row in rows:
+        row = tuple(row) + ("—",) * (6 - len(row))
+        lines.append("| " + " | ".join(str(c) for c in row[:6]) + " |")
     Path(args.out).write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 

@@ -105,3 +105,22 @@ def test_converting_between_open_model_genders_fits_a_subset_and_measures_every_
         assert r.converged.all()
     assert 0.0005 < whole.vertex_error.mean() < 0.02  # the shape spaces differ: not zero, not far
     assert np.all(subset.vertex_error <= whole.vertex_error + 2e-4)
+
+
+@pytest.mark.parametrize("protocol", [2, 4])
+def test_a_full_size_smpl_to_smplx_map_reads_as_a_sparse_matrix(tmp_path, protocol):
+    """The official smpl2smplx map is (10475, 2 x 6890): 144 million entries if made dense, which a model
+    file's budget refuses; a deformation-transfer file's matrix stays sparse and is charged by its entries."""
+    from smplcore.fit.convert import read_deformation_transfer
+
+    rng = np.random.default_rng(6)
+    rows = np.repeat(np.arange(10475), 3)
+    cols = rng.integers(0, 6890, rows.size)
+    weights = rng.dirichlet(np.ones(3), 10475).reshape(-1)
+    mtx = sp.csc_matrix((weights, (rows, cols)), shape=(10475, 13780))
+    path = tmp_path / "smpl2smplx_deftrafo_setup.pkl"
+    with open(path, "wb") as fh:
+        pickle.dump({"mtx": mtx}, fh, protocol=protocol)
+    corr = read_deformation_transfer(path, 6890, 10475)
+    verts = rng.normal(size=(2, 6890, 3))
+    np.testing.assert_allclose(corr.apply(verts), np.stack([mtx[:, :6890] @ v for v in verts]), atol=1e-12)

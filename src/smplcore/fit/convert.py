@@ -65,13 +65,14 @@ def _source_vertices(model: Any, params: dict[str, Any]) -> tuple[np.ndarray, np
 def read_deformation_transfer(path: str | Path, num_source: int, num_target: int) -> Correspondence:
     """The vertex map of an official deformation-transfer pickle (``mtx`` or ``matrix``), read safely."""
     from smplcore.io import safe_load
+    from smplcore.io.budgets import LoadBudget
 
     path = Path(path)
     if not path.is_file():
         raise ModelFileError(path, "no such file")
     with open(path, "rb") as fh:
         try:
-            data = safe_load(fh)
+            data = safe_load(fh, LoadBudget(path, path.stat().st_size, sparse_stays_sparse=True))
         except Exception as exc:  # the allow-list refused it or the data is corrupt
             raise ModelFileError(path, f"cannot be read safely: {exc}") from exc
     if not isinstance(data, dict) or not ({"mtx", "matrix"} & set(data)):

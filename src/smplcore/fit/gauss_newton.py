@@ -10,6 +10,9 @@ are solved in chunks (independent problems) unless shape coefficients are shared
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
 import numpy.typing as npt
 
@@ -164,7 +167,18 @@ def refine(
 
     def run(rows: np.ndarray) -> int:
         x[rows], costs[rows], dists[rows], converged[rows], its = _solve(
-            body, problem, x[rows], rows, shared_cols, coupled, max_iter, tol, step_tol, abs_tol, hessian_every
+            body,
+            problem,
+            x[rows],
+            rows,
+            shared_cols,
+            coupled,
+            max_iter,
+            tol,
+            step_tol,
+            abs_tol,
+            hessian_every,
+            workers if coupled else 1,
         )
         return its
 
@@ -172,11 +186,29 @@ def refine(
     return _unflat(body, x), costs, dists, converged, most
 
 
-def _solve(body, problem, x, rows, shared_cols, coupled, max_iter, tol, step_tol, abs_tol, every):
-    """LM on the bodies ``rows`` (x: their (b, Q + K + 3) parameters)."""
+def _threaded(method: Callable, workers: int | None) -> Callable:
+    """``method(state, rows)`` over chunks of the bodies in threads, the results joined: coupled bodies
+    are one system for the step but independent for the cost, gradient and Gauss-Newton matrix."""
+
+    def call(state: State, rows: np.ndarray) -> Any:
+        parts = chunks(len(rows), workers)
+        if len(parts) == 1:
+            return method(state, rows)
+        outs = map_chunks(lambda p: method(state.take(p), rows[p]), parts, workers)
+        if isinstance(outs[0], tuple):
+            return tuple(np.concatenate(z) for z in zip(*outs))
+        return np.concatenate(outs)
+
+    return call
+
+
+def _solve(body, problem, x, rows, shared_cols, coupled, max_iter, tol, step_tol, abs_tol, every, workers=1):
+    """LM on the bodies ``rows`` (x: their (b, Q + K + 3) parameters); ``workers`` threads share the
+    per-body work of coupled bodies."""
     cols = problem.cols
+    evaluate, hessian = _threaded(problem.evaluate, workers), _threaded(problem.hessian, workers)
     scale = np.maximum(problem.obj.weights[rows].sum(1), 1e-300)
-    cost, grad, dist = problem.evaluate(_unflat(body, x), rows)
+    cost, grad, dist = evaluate(_unflat(body, x), rows)
     converged = cost <= abs_tol * scale
     if coupled:
         converged[:] = converged.all()
@@ -193,17 +225,17 @@ def _solve(body, problem, x, rows, shared_cols, coupled, max_iter, tol, step_tol
         sub = rows[active]
         stale = active[~fresh[active] & ((age[active] >= every) | (iterations == 1))]
         if len(stale) == len(rows):  # every body: no copy
-            hess = problem.hessian(_unflat(body, x), rows)
+            hess = hessian(_unflat(body, x), rows)
         elif len(stale):
             assert hess is not None  # the first iteration computes every body's
-            hess[stale] = problem.hessian(_unflat(body, x[stale]), rows[stale])
+            hess[stale] = hessian(_unflat(body, x[stale]), rows[stale])
         fresh[stale], age[stale] = True, 0
         assert hess is not None
         everyone = len(active) == len(rows)
         step = _step(hess if everyone else hess[active], grad[active], damping[active], shared_cols)
         trial = x[active].copy()
         trial[:, cols] += step
-        new_cost, new_grad, new_dist = problem.evaluate(_unflat(body, trial), sub)
+        new_cost, new_grad, new_dist = evaluate(_unflat(body, trial), sub)
         better = np.full(len(active), new_cost.sum() <= cost[active].sum()) if coupled else new_cost <= cost[active]
         old = cost[active]
         decrease = (old - new_cost) / np.maximum(old, 1e-300)

@@ -72,11 +72,15 @@ class LoadBudget:
     ----------
     path : the file (for messages).
     file_size : its size in bytes.
+    sparse_stays_sparse : the file's sparse matrices are used as they are (not made dense).
     """
 
-    def __init__(self, path: str | Path, file_size: int) -> None:
+    def __init__(self, path: str | Path, file_size: int, *, sparse_stays_sparse: bool = False) -> None:
         self.path = str(path)
         self.file_size = int(file_size)
+        # model files' sparse matrices (regressors) are made dense, so their dense size is charged; a
+        # deformation-transfer map (10475 x 13780) stays sparse and costs only its entries
+        self.sparse_stays_sparse = sparse_stays_sparse
         self.limit = min(CEILING_BYTES, FLOOR_BYTES + BYTES_PER_FILE_BYTE * self.file_size)
         self.used = 0
         self.key: str | None = None

@@ -1,8 +1,9 @@
 """Rebuilding pickled ``scipy.sparse`` matrices, with every index checked before SciPy sees it.
 
 SciPy's ``toarray`` trusts ``indices`` / ``indptr``: out-of-range values write outside the dense
-result. So the shape (which is made dense later, so ``rows x cols`` is charged to the budget), the
-lengths, the ordering of ``indptr`` and the range of every index are checked first.
+result. So the shape (which model files make dense later, so ``rows x cols`` is charged to the budget,
+unless the budget says the matrix stays sparse), the lengths, the ordering of ``indptr`` and the range of
+every index are checked first.
 """
 
 from __future__ import annotations
@@ -41,8 +42,12 @@ def sparse_value(name: str, state: dict[str, Any], budget: LoadBudget) -> Any:
     shape = state.get("_shape", state.get("shape"))
     if not isinstance(shape, tuple) or len(shape) != 2:
         raise pickle.UnpicklingError(f"{what}: expected a (rows, cols) shape, found {type(shape).__name__}")
-    rows, cols = budget.check_shape(shape, what)
-    budget.charge(8 * rows * cols, f"{what} of shape ({rows}, {cols}) made dense")
+    if budget.sparse_stays_sparse:  # its entries were charged as arrays; only the row pointers are new
+        rows, cols = (budget.check_shape((n,), what)[0] for n in shape)
+        budget.charge(8 * (max(rows, cols) + 1), f"{what} of shape ({rows}, {cols})")
+    else:
+        rows, cols = budget.check_shape(shape, what)
+        budget.charge(8 * rows * cols, f"{what} of shape ({rows}, {cols}) made dense")
     data = _vector(state, "data", "biuf", what)
     fmt = name[:3]
     if fmt == "coo":
