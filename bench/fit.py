@@ -14,7 +14,9 @@ Cases (float32 targets made by a model, the same for every contender: seeded):
 - conversion: open model (neutral) → open model (male), shared mesh, different shape space (a real
   conversion's residual), and fake SMPL → fake SMPL-X through the map smplcore computes from the two
   templates, given to both contenders as an official-format deformation-transfer file (the fake meshes are
-  unrelated random geometry: the residual is large, the speed is what is measured).
+  unrelated random geometry: the residual is centimetres and the solver works hard, the speed is what is
+  measured); smplfitter's BodyConverter needs AGORA's licensed kid template as well, and is reported as not
+  loading where it is missing.
 Errors are mean distances per body (vertices, joints): mean and 95th percentile over bodies.
 Times: the best of three runs after a warm-up. Peak memory: the process's resident-set growth during the
 runs (Linux ``clear_refs``). "smplcore ×" is the fits/s of the fastest smplcore row of the case whose
