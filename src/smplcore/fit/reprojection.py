@@ -275,6 +275,8 @@ def levenberg_marquardt(
         if coupled:
             decrease = np.full(batch, (cost.sum() - new_cost.sum()) / max(cost.sum(), 1e-300))
         small = np.max(np.abs(step), axis=1) < step_tol
+        if coupled:  # bodies that share columns stop together (a stopped body would keep stale shared values)
+            small = np.full(batch, bool(small.all()))
         x = np.where(better[:, None], trial, x)
         factor = np.maximum(1 / 3, 1 - (2 * np.clip(gain, 0, 1) - 1) ** 3)
         damping = np.where(better, np.maximum(damping * factor, 1e-9), np.where(active, damping * growth, damping))
