@@ -1,15 +1,19 @@
 """fit_keypoints(estimate_focal=True): the focal column of the objective, the depth that moves with it,
-recovery on an informative scene, and the prior."""
+recovery on an informative scene, the prior, and the CLI's camera choices (--focal, --no-estimate-focal,
+--vposer, --gmm)."""
 
 from __future__ import annotations
+
+import json
 
 import numpy as np
 import pytest
 
 import smplcore
-from fakes_fit2d import CAMERA, natural_poses, pa_mpjpe, scene
+from fakes_fit2d import CAMERA, natural_poses, pa_mpjpe, scene, write_fake_gmm
 from smplcore import fit
 from smplcore import keypoints as kp
+from smplcore.cli import main
 from smplcore.fit import keypoints2d, reprojection
 from smplcore.fit.body import FitBody
 
@@ -156,3 +160,47 @@ def test_without_estimation_the_camera_is_the_given_one(open_model):
     assert r.camera is CAMERA
     with pytest.raises(ValueError, match="focal_prior"):
         fit.fit_keypoints(open_model, keypoints, camera=CAMERA, estimate_focal=True, focal_prior=-1.0)
+
+
+# -- the command line ----------------------------------------------------------------------------------
+
+
+def _openpose_folder(folder, model, frames=3):
+    rng = np.random.default_rng(7)
+    params = natural_poses(model, 1, rng)
+    seq = {k: np.repeat(v, frames, 0) for k, v in params.items()}
+    keypoints, _, _ = scene(model, seq, np.random.default_rng(0), convention="openpose25")
+    folder.mkdir()
+    for t, frame in enumerate(keypoints):
+        doc = {"version": 1.3, "people": [{"pose_keypoints_2d": frame.reshape(-1).tolist()}]}
+        (folder / f"frame_{t:04d}_keypoints.json").write_text(json.dumps(doc))
+    return folder
+
+
+def test_cli_estimates_the_focal_length_unless_told(tmp_path, open_model):
+    folder = _openpose_folder(tmp_path / "op", open_model)
+    fixed, guessed, estimated = tmp_path / "fixed.npz", tmp_path / "guess.npz", tmp_path / "estimated.npz"
+    assert main(["fit", str(folder), "-o", str(fixed), "--focal", "1000", "--center", "500,500"]) == 0
+    assert main(["fit", str(folder), "-o", str(guessed), "--image-size", "1000,1000", "--no-estimate-focal"]) == 0
+    assert main(["fit", str(folder), "-o", str(estimated), "--image-size", "1000,1000"]) == 0
+    with np.load(fixed) as a, np.load(guessed) as b, np.load(estimated) as c:
+        np.testing.assert_allclose(a["fit_focal"], 1000.0)
+        np.testing.assert_allclose(b["fit_focal"], np.hypot(1000, 1000))
+        assert c["fit_focal"].shape == (3, 2) and np.all(c["fit_focal"] == c["fit_focal"][0, 0])  # one per sequence
+        assert 700.0 < c["fit_focal"][0, 0] < 2900.0 and not np.isclose(c["fit_focal"][0, 0], np.hypot(1000, 1000))
+
+
+def test_cli_priors_from_files(tmp_path, open_model, capsys):
+    torch = pytest.importorskip("torch")  # noqa: F841 -- writes the fake checkpoint
+    from fakes_vposer import reference, write_folder
+
+    folder = _openpose_folder(tmp_path / "op", open_model, frames=2)
+    vposer = write_folder(tmp_path / "V02_05", reference(seed=1))
+    gmm = write_fake_gmm(tmp_path / "gmm_08.pkl")
+    out = tmp_path / "fit.npz"
+    argv = ["fit", str(folder), "-o", str(out), "--focal", "1000", "--center", "500,500"]
+    assert main([*argv, "--vposer", str(vposer), "--gmm", str(gmm)]) == 0
+    with np.load(out) as data:
+        assert data["fit_error"].max() < 3.0
+    assert main([*argv, "--vposer", str(tmp_path / "nowhere")]) == 2
+    assert "--vposer" in capsys.readouterr().err
