@@ -5,17 +5,18 @@ One focal length for the batch (every body is seen by the same camera), fitted w
 1. **Hypotheses.** The whole fit (stages 1 and 2) runs for each focal length ``f₀ × FOCAL_GRID``
    (``f₀`` the given camera's, e.g. ``Camera.from_image_size``'s guess): from 0.5 f₀ to 2 f₀ in steps of
    √2. Each is a fit from scratch: a body fitted with one focal length sits in a local minimum that a
-   gradient method does not leave for a quite different focal length (measured: a joint
-   Levenberg–Marquardt from f₀ moved the focal length by under 1 % where it was 40 % off). The
-   hypotheses are compared by the bodies' costs, all with the same metres-per-pixel scale, combined
-   robustly: each body's excess over its own best hypothesis, truncated at the median excess, summed
-   (a body that fell into a poor local minimum under one hypothesis then cannot veto it alone; measured
-   on six people per image, this halved the mean error of the plain sum), plus the prior
-   ``w (log f/f₀)²``.
-2. **Refinement.** From the best hypothesis, a parabola through it and its two neighbours (in log f)
-   gives the start, and Levenberg–Marquardt refines every body and ``log f`` jointly
-   (:mod:`smplcore.fit.reprojection`, where the bodies' depths move with the focal length so that the
-   focal column changes only the perspective).
+   gradient method does not leave for a quite different one (measured: a joint Levenberg–Marquardt from
+   1414 px, sixteen people 2–3 m away seen with 1000 px, moved the focal length by under 1 % in 25
+   iterations). The hypotheses are compared by the bodies' costs, all with the same metres-per-pixel
+   scale, combined robustly: each body's excess over its own best hypothesis, truncated at the median
+   excess, summed (a body that fell into a poor local minimum under one hypothesis then cannot veto it
+   alone; on 18 scenes of six people this lowered the mean ``|log(f / f_true)|`` from 0.27 to 0.19),
+   plus the prior ``w (log f/f₀)²``.
+2. **Refinement.** Bodies that did better under another hypothesis restart from that fit (moved to keep
+   their place and size in the image) and keep it if it is better under the chosen one. A parabola
+   through the best hypothesis and its two neighbours (in log f) gives the start, and
+   Levenberg–Marquardt refines every body and ``log f`` jointly (:mod:`smplcore.fit.reprojection`, where
+   the bodies' depths move with the focal length so that the focal column changes only the perspective).
 
 Focal length and depth are nearly interchangeable for a person far from the camera (a body twice as
 far seen with twice the focal length looks the same up to perspective, which is a few pixels over a

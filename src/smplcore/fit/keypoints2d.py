@@ -5,8 +5,8 @@ focal length, then translation and global orientation fitted to the torso and he
 two starts (facing the camera and facing away; the better is kept); (2) everything (pose, shape,
 translation) with the priors, whose weights decrease over a few rounds (from ``anneal``), as SMPLify
 does. With ``estimate_focal`` both stages run for several focal lengths and the best is refined jointly
-with the bodies (:mod:`smplcore.fit.focal`). See :mod:`smplcore.fit.reprojection` for the objective, :mod:`smplcore.fit.priors` and
-:mod:`smplcore.fit.vposer` for the priors.
+with the bodies (:mod:`smplcore.fit.focal`). See :mod:`smplcore.fit.reprojection` for the objective,
+:mod:`smplcore.fit.priors` and :mod:`smplcore.fit.vposer` for the priors.
 """
 
 from __future__ import annotations
