@@ -28,7 +28,8 @@ from smplcore import keypoints as kp
 CAMERA = fit.Camera(focal=1000.0, center=(500.0, 500.0))
 
 
-def synthetic(model, count: int, rng: np.random.Generator):
+def synthetic_params(model, count: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """The bodies of the module docstring: natural poses, 3-5 m in front of the camera."""
     names = list(model.joint_names)
 
     def col(joint, axis):
@@ -45,6 +46,11 @@ def synthetic(model, count: int, rng: np.random.Generator):
         "betas": rng.normal(0, 0.5, (count, 10)),
         "transl": np.c_[rng.normal(0, 0.3, count), rng.normal(0, 0.2, count), rng.uniform(3.0, 5.0, count)],
     }
+    return params
+
+
+def synthetic(model, count: int, rng: np.random.Generator):
+    params = synthetic_params(model, count, rng)
     j3 = kp.convert(np.asarray(model(**params).joints, np.float64), model, "coco17")[0]
     uv = CAMERA.project(j3) + rng.normal(0, 1.0, j3.shape[:2] + (2,))
     return params, np.concatenate([uv, np.ones(uv.shape[:2] + (1,))], -1), j3
@@ -182,7 +188,10 @@ def main() -> None:
         "|---|---|---|---|---|",
     ]
     lines += [f"| {a} | {b} | {c} | {d} | {e} |" for a, b, c, d, e in rows]
-    Path(args.out).write_text("\n".join(lines) + "\n")
+    out = Path(args.out)
+    old = out.read_text() if out.exists() else ""
+    keep = old[old.index("## Focal length estimation") :] if "## Focal length estimation" in old else ""
+    out.write_text("\n".join(lines) + "\n" + ("\n" + keep if keep else ""))  # keeps fit_focal_case.py's section
     print("\n".join(lines))
 
 

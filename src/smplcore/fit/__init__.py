@@ -9,7 +9,8 @@ solver runs in NumPy either way; products over the mesh in float32 for float32 m
 
 ``fit_keypoints`` fits 2D keypoints seen by a pinhole :class:`Camera` (OpenCV convention), SMPLify-style:
 robust reprojection cost, staged Levenberg–Marquardt, open priors (anatomical joint limits, elbow/knee
-bending) and SMPLify's GMM when the user has it (:class:`GMMPrior`).
+bending) and SMPLify's GMM or VPoser v2 when the user has them (:class:`GMMPrior`, :class:`VPoserPrior`);
+the focal length known or estimated (``estimate_focal``).
 """
 
 from smplcore.fit.camera import Camera
@@ -19,11 +20,13 @@ from smplcore.fit.keypoints2d import fit_keypoints
 from smplcore.fit.priors import GMMPrior
 from smplcore.fit.result import FitResult
 from smplcore.fit.vertices import fit_vertices
+from smplcore.fit.vposer import VPoserPrior
 
 __all__ = [
     "Camera",
     "FitResult",
     "GMMPrior",
+    "VPoserPrior",
     "convert",
     "correspondence",
     "fit_joints",

@@ -21,7 +21,8 @@ import numpy as np
 EPILOG = """\
 examples:
   smplcore fit openpose_frames/ -o fit.npz --focal 1000 --center 960,540
-  smplcore fit person_keypoints.json -o fit.npz                # COCO: cameras from the images' sizes
+  smplcore fit person_keypoints.json -o fit.npz                # COCO: focal estimated per image
+  smplcore fit openpose_frames/ -o fit.npz --image-size 1920,1080 --vposer V02_05/
   smplcore fit joints.npy -o fit.npz --convention coco17        # or --joint-names pelvis,left_hip,...
   smplcore fit smplh_motion.npz -o smplx.npz --model-type smplx --model-path models/ --source-model-path models/
   smplcore fit inputs/ -o fits/ --image-size 1920,1080 --workers 2
@@ -60,7 +61,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--joint-names", default=None, help=".npy joints: the model joint names, comma-separated")
     p.add_argument("--focal", type=_floats, default=None, help="2D: focal length f or fx,fy (pixels)")
     p.add_argument("--center", type=_floats, default=None, help="2D: principal point cx,cy (pixels)")
-    p.add_argument("--image-size", type=_floats, default=None, help="2D: W,H; camera centred, focal = diagonal")
+    p.add_argument(
+        "--image-size", type=_floats, default=None,
+        help="2D: W,H; principal point at the centre; without --focal the focal length is estimated, from the "
+        "image diagonal",
+    )  # fmt: skip
+    p.add_argument(
+        "--no-estimate-focal", dest="estimate_focal", action="store_false",
+        help="2D without --focal: keep the image diagonal as the focal length instead of estimating it",
+    )  # fmt: skip
+    p.add_argument("--vposer", default=None, metavar="PATH", help="2D: VPoser v2 pose prior (V02_05/ or its .ckpt)")
+    p.add_argument("--gmm", default=None, metavar="PATH", help="2D: SMPLify's gmm_08.pkl pose prior")
     p.add_argument("--fps", type=float, default=30.0, help="frame rate written to the output (default 30)")
     p.add_argument("--person", type=int, default=0, help="OpenPose: which person of each frame (default 0)")
     p.add_argument("--smoothness", type=float, default=1e-3, help="sequences: temporal smoothness weight")
@@ -88,6 +99,10 @@ def _settings(args: argparse.Namespace):
     if args.focal is not None and len(args.focal) not in (1, 2):
         raise ValueError(f"--focal: expected f or fx,fy, got {args.focal}")
     names = None if args.joint_names is None else tuple(n.strip() for n in args.joint_names.split(",") if n.strip())
+    for option in ("vposer", "gmm"):
+        value = getattr(args, option)
+        if value is not None and not Path(value).exists():
+            raise ValueError(f"--{option}: {value}: no such file or folder")
     return FitSettings(
         model_type=args.model_type,
         model_path=args.model_path,
@@ -101,6 +116,9 @@ def _settings(args: argparse.Namespace):
         person=args.person,
         smoothness=args.smoothness,
         source_model_path=args.source_model_path,
+        estimate_focal=args.estimate_focal,
+        vposer=None if args.vposer is None else str(Path(args.vposer).resolve()),
+        gmm=None if args.gmm is None else str(Path(args.gmm).resolve()),
     )
 
 

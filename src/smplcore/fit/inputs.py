@@ -5,7 +5,8 @@ Inputs: a folder of OpenPose JSON files (one sequence; ``person`` picks the pers
 JSON (every annotated person an independent body, in image order), a ``.npy`` of 3D joints (T, n, 3),
 or an AMASS-style ``.npz`` of another model (converted). The output is what
 :func:`smplcore.motion.load_motion` (``smplcore export`` / ``smplcore process``) reads, plus
-``fit_error`` (T,) (pixels for 2D, metres otherwise), ``fit_converged`` (T,) and ``fit_kind``.
+``fit_error`` (T,) (pixels for 2D, metres otherwise), ``fit_converged`` (T,) and ``fit_kind``; for 2D
+inputs also ``fit_focal`` (T, 2), the focal length each frame was fitted with (given or estimated).
 """
 
 from __future__ import annotations
@@ -37,6 +38,9 @@ class FitSettings:
     person: int = 0
     smoothness: float = 1e-3
     source_model_path: str | None = None
+    estimate_focal: bool = True  # 2D without ``focal``: estimate it (from the image diagonal)
+    vposer: str | None = None
+    gmm: str | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
 
@@ -69,7 +73,25 @@ def build_model(settings: FitSettings, model_type: str | None = None, model_path
     return BodyModel(path, model_type=model_type, gender=settings.gender, **options)
 
 
+_PRIORS: dict[tuple[str, str], Any] = {}
+
+
+def _priors(settings: FitSettings) -> dict[str, Any]:
+    """The VPoser / GMM priors of ``settings``, each read once per process."""
+    from smplcore.fit import GMMPrior, VPoserPrior
+
+    out = {}
+    for name, kind in (("vposer", VPoserPrior), ("gmm", GMMPrior)):
+        path = getattr(settings, name)
+        if path is not None:
+            if (name, path) not in _PRIORS:
+                _PRIORS[(name, path)] = kind.load(path)
+            out[name] = _PRIORS[(name, path)]
+    return out
+
+
 def _camera(settings: FitSettings, size: tuple[float, float] | None = None):
+    """The camera of a 2D input and whether its focal length is to be estimated."""
     from smplcore.fit.camera import Camera
 
     size = settings.image_size or size
@@ -80,9 +102,9 @@ def _camera(settings: FitSettings, size: tuple[float, float] | None = None):
         if center is None:
             raise ValueError("--center: the principal point is needed with --focal (or give --image-size)")
         focal = settings.focal[0] if len(settings.focal) == 1 else settings.focal
-        return Camera(focal=focal, center=center)
+        return Camera(focal=focal, center=center), False
     if size is not None:
-        return Camera.from_image_size(*size)
+        return Camera.from_image_size(*size), settings.estimate_focal
     raise ValueError("camera: 2D keypoints need the camera: pass --focal and --center, or --image-size W,H")
 
 
@@ -120,9 +142,9 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
             seen = np.flatnonzero((points[..., 2] >= 0.1).sum(-1) >= 6)  # OpenPose gives zeros for a missing person
             if len(seen) == 0:
                 raise ValueError(f"keypoints: no frame of {path} shows person {settings.person} with 6 keypoints")
-            cam = _camera(settings)
-            r = fit.fit_keypoints(model, points[seen], convention, cam, share_betas=True,
-                                  smoothness=settings.smoothness, **extra)  # fmt: skip
+            cam, estimate = _camera(settings)
+            r = fit.fit_keypoints(model, points[seen], convention, cam, share_betas=True, estimate_focal=estimate,
+                                  smoothness=settings.smoothness, **_priors(settings), **extra)  # fmt: skip
             results = [(seen, r)]
             count = len(points)
         else:
@@ -134,16 +156,22 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
             results = []
             for f in np.unique(frame):  # one camera per image
                 rows = np.flatnonzero(frame == f)
-                cam = _camera(settings, sizes.get(array.frames[f]))
-                results.append((rows, fit.fit_keypoints(model, points[f, person[rows]], convention, cam, **extra)))
+                cam, estimate = _camera(settings, sizes.get(array.frames[f]))
+                people = points[f, person[rows]]
+                r = fit.fit_keypoints(
+                    model, people, convention, cam, estimate_focal=estimate, **_priors(settings), **extra
+                )
+                results.append((rows, r))
             labels = {"image_id": np.array([str(array.frames[f]) for f in frame]), "person": person}
             count = len(frame)
         error: np.ndarray = np.full(count, np.nan)  # frames without the person: NaN, not converged, nearest frame's fit
         converged = np.zeros(count, bool)
+        focal = np.full((count, 2), np.nan)
         parts: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
         for rows, r in results:
             error[rows] = r.reprojection_error
             converged[rows] = r.converged
+            focal[rows] = r.camera.focal
             for key, value in r.params.items():
                 parts.setdefault(key, []).append((rows, np.asarray(value)))
         params = {k: _gather(v, count) for k, v in parts.items()}
@@ -152,6 +180,8 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
             nearest = fitted[np.abs(np.arange(count)[:, None] - fitted[None]).argmin(1)]
             params = {k: v[nearest] for k, v in params.items()}
         betas = params["betas"].mean(0)
+        if len(fitted) < count:
+            focal = focal[nearest]
     elif kind == "joints":
         joints = np.load(path, allow_pickle=False)
         names: Sequence[str] | None = settings.joint_names
@@ -178,6 +208,8 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
     arrays.update(fit_error=error, fit_converged=converged, fit_kind=np.array(kind))
     if labels is not None:
         arrays.update(labels)
+    if kind in ("openpose", "coco"):
+        arrays["fit_focal"] = focal
     summary = {
         "kind": kind,
         "frames": len(error),

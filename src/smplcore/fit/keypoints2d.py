@@ -4,13 +4,15 @@ Stages: (1) the body in its rest pose, the translation from the torso's size in 
 focal length, then translation and global orientation fitted to the torso and head keypoints, from
 two starts (facing the camera and facing away; the better is kept); (2) everything (pose, shape,
 translation) with the priors, whose weights decrease over a few rounds (from ``anneal``), as SMPLify
-does. See :mod:`smplcore.fit.reprojection` for the objective and :mod:`smplcore.fit.priors` for the
-priors.
+does. With ``estimate_focal`` both stages run for several focal lengths and the best is refined jointly
+with the bodies (:mod:`smplcore.fit.focal`). See :mod:`smplcore.fit.reprojection` for the objective,
+:mod:`smplcore.fit.priors` and :mod:`smplcore.fit.vposer` for the priors.
 """
 
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -18,10 +20,12 @@ import numpy as np
 from smplcore.errors import ShapeError
 from smplcore.fit.body import FitBody
 from smplcore.fit.camera import Camera
+from smplcore.fit.focal import FOCAL_PRIOR, estimate_focal_length
 from smplcore.fit.priors import BENDING, GMMPrior, joint_limits
 from smplcore.fit.reprojection import KeypointMap, Terms, keypoints_3d, levenberg_marquardt, reprojection
 from smplcore.fit.result import FitResult, as_array, params_to_state, single_threaded_blas, state_to_params
 from smplcore.fit.solver import State
+from smplcore.fit.vposer import POSE_WIDTH, VPoserPrior
 
 TORSO = ("left_shoulder", "right_shoulder", "left_hip", "right_hip", "neck", "mid_hip", "pelvis")
 HEAD = ("nose", "left_eye", "right_eye", "left_ear", "right_ear", "head", "head_top")
@@ -150,10 +154,10 @@ def _terms(body, kmap, camera, targets, weights, scale, sigma, free, shared, **p
     )
 
 
-def _place(body, kmap, camera, start, given, targets, weights, go_cols, transl_cols, sigma, max_iter, tol):
+def _place(body, kmap, camera, start, given, targets, weights, go_cols, transl_cols, sigma, max_iter, tol, scale=None):
     """Stage 1: translation and global orientation fitted to the torso and head keypoints, from the
     camera-facing and the facing-away starts (the better kept). Returns the state, (B,) metres per
-    pixel at the bodies and the iterations run."""
+    pixel at the bodies (``scale`` when given) and the iterations run."""
     batch = len(targets)
     q, k = body.num_pose, body.num_coeffs
     facings = ((np.pi, 0.0, 0.0), (0.0, 0.0, np.pi)) if "global_orient" not in given else (None,)
@@ -162,10 +166,10 @@ def _place(body, kmap, camera, start, given, targets, weights, go_cols, transl_c
         state = start.copy()
         if facing is not None:
             state.pose[:, go_cols] = _rotation_of(camera, np.array(facing))
-        transl, scale = _initial_translation(body, kmap, camera, state, targets, weights)
+        transl, placed = _initial_translation(body, kmap, camera, state, targets, weights)
         if "transl" not in given:
             state.transl = transl
-        candidates.append((state, scale))
+        candidates.append((state, placed if scale is None else scale))
     rigid = np.array([n in TORSO + HEAD for n in kmap.names])
     w1 = np.where(((weights > 0) & rigid).sum(1, keepdims=True) >= 3, weights * rigid, weights)
     free = np.zeros(q + k + 3, bool)
@@ -180,8 +184,63 @@ def _place(body, kmap, camera, start, given, targets, weights, go_cols, transl_c
     both, cost, _, iterations = levenberg_marquardt(body, terms, both, max_iter=max_iter, tol=tol)
     pick = np.argmin(cost.reshape(reps, batch), axis=0) * batch + np.arange(batch)
     state = State(both.pose[pick], both.coeffs[pick], both.transl[pick])
-    scale = scale2[pick]
-    return state, scale, iterations
+    return state, scale2[pick], iterations
+
+
+@dataclass
+class _Setup:
+    """What stages 1 and 2 need besides the camera."""
+
+    body: FitBody
+    kmap: KeypointMap
+    start: State
+    given: dict[str, Any]
+    targets: np.ndarray
+    weights: np.ndarray
+    free: np.ndarray
+    shared: np.ndarray
+    sigma: float
+    priors: dict[str, float]  # annealed
+    fixed: dict[str, Any]  # not annealed
+    anneal: tuple[float, ...]
+    starts: list[np.ndarray | None] = field(default_factory=lambda: [None])  # body poses of stage 2's starts
+    max_iter: int = 25
+    tol: float = 1e-4
+
+
+def _stages(setup: _Setup, camera: Camera, scale: np.ndarray | None = None):
+    """Stages 1 and 2 with ``camera``. Returns the state, (B,) costs, converged flags, iterations, the
+    last round's terms and the (B,) metres per pixel used (``scale`` when given)."""
+    body, batch = setup.body, len(setup.targets)
+    q, k = body.num_pose, body.num_coeffs
+    blocks = {b.name: b for b in body.blocks}
+    go, bp = blocks["global_orient"], blocks["body_pose"]
+    placed, scale, iterations = _place(
+        body, setup.kmap, camera, setup.start, setup.given, setup.targets, setup.weights,
+        np.arange(go.start, go.start + 3), q + k + np.arange(3), setup.sigma, setup.max_iter, setup.tol, scale,
+    )  # fmt: skip
+    coupled = bool(setup.shared.any() or setup.fixed.get("smooth")) and batch > 1
+    best: tuple[State, np.ndarray, np.ndarray] | None = None
+    for pose in setup.starts:
+        state = placed.copy()
+        if pose is not None:
+            state.pose[:, bp.start : bp.start + bp.width] = pose
+        for factor in setup.anneal:
+            terms = _terms(
+                body, setup.kmap, camera, setup.targets, setup.weights, scale, setup.sigma, setup.free, setup.shared,
+                **{key: value * factor for key, value in setup.priors.items()}, **setup.fixed,
+            )  # fmt: skip
+            state, cost, converged, used = levenberg_marquardt(
+                body, terms, state, max_iter=setup.max_iter, tol=setup.tol
+            )
+            iterations += used
+        if best is None:
+            best = (state, cost, converged)
+            continue
+        better = np.full(batch, cost.sum() < best[1].sum()) if coupled else cost < best[1]
+        best = (_where(better, state, best[0]), np.where(better, cost, best[1]), np.where(better, converged, best[2]))
+    assert best is not None  # starts holds at least one pose
+    return (*best, iterations, terms, scale)
 
 
 def _where(mask: np.ndarray, a: State, b: State) -> State:
@@ -210,6 +269,10 @@ def fit_keypoints(
     bending: float = 1.0,
     gmm: str | os.PathLike[str] | GMMPrior | None = None,
     gmm_weight: float = 1e-4,
+    vposer: str | os.PathLike[str] | VPoserPrior | None = None,
+    vposer_weight: float = 1e-4,
+    estimate_focal: bool = False,
+    focal_prior: float = FOCAL_PRIOR,
     smoothness: float = 0.0,
     anneal: tuple[float, ...] = (3.0, 1.0),
     multi_start: bool = True,
@@ -238,6 +301,13 @@ def fit_keypoints(
     joint_limits, bending : weights (m² per rad²) of the anatomical joint limits and of the elbow/knee
         bending prior (:mod:`smplcore.fit.priors`).
     gmm, gmm_weight : SMPLify's ``gmm_08.pkl`` (path or :class:`GMMPrior`) and its weight.
+    vposer, vposer_weight : VPoser v2 (the ``V02_05`` folder, its ``.ckpt``, or a :class:`VPoserPrior`) and
+        the weight of ``|μ(θ)|²``, its encoder's mean of the first 21 body joints' rotations.
+    estimate_focal : fit one focal length for the whole batch (every body is seen by ``camera``):
+        stages 1 and 2 for each of the focal lengths ``camera.focal × FOCAL_GRID``, the best (with the
+        prior) refined jointly with the bodies (:mod:`smplcore.fit.focal`); ``focal_prior`` is the weight
+        of ``(log f/f₀)²`` (m², as the other priors) pulling it towards ``camera.focal``; the aspect
+        ratio f_y/f_x is kept. The result's ``camera`` holds the estimate. About six times the time.
     smoothness : weight of Σ_t |x_t − x_{t−1}|² over pose and translation of consecutive bodies.
     anneal : multipliers of the priors' weights in the rounds of stage 2.
     multi_start : run stage 2 also from a natural pose (arms lowered, elbows and knees a little bent)
@@ -246,8 +316,8 @@ def fit_keypoints(
 
     Returns
     -------
-    FitResult with ``params``, ``reprojection_error`` (B,) mean pixels over the keypoints used, and
-    ``converged`` (B,).
+    FitResult with ``params``, ``reprojection_error`` (B,) mean pixels over the keypoints used,
+    ``converged`` (B,) and ``camera`` (the given one, or with the estimated focal length).
     """
     if camera is None:
         raise ValueError(
@@ -277,49 +347,39 @@ def fit_keypoints(
     blocks = {b.name: b for b in body.blocks}
     if gmm is not None:
         gmm = gmm.marginal(blocks["body_pose"].width)
+    if isinstance(vposer, (str, os.PathLike)):
+        vposer = VPoserPrior.load(vposer)
+    if vposer is not None:
+        if not isinstance(vposer, VPoserPrior):
+            raise TypeError(f"vposer: expected a path or a smplcore.fit.VPoserPrior, got {type(vposer).__name__}")
+        if blocks["body_pose"].width < POSE_WIDTH:
+            raise ValueError(
+                f"vposer: VPoser covers 21 body joints; this {body.model_type} model's body pose has fewer"
+            )
     start = params_to_state(body, {**(init or {}), **({} if betas is None else {"betas": betas})}, batch)
-    go = blocks["global_orient"]
-    go_cols = np.arange(go.start, go.start + 3)
-    transl_cols = q + k + np.arange(3)
-    state, scale, iterations = _place(
-        body, kmap, camera, start, init or {}, targets, weights, go_cols, transl_cols, sigma, max_iter, tol
-    )
-    # stage 2: everything, priors annealed, from the rest pose and from a natural pose (the better is kept)
     bp = blocks["body_pose"]
     free = np.zeros(q + k + 3, bool)
-    free[go_cols] = free[transl_cols] = True
+    free[blocks["global_orient"].start + np.arange(3)] = free[q + k :] = True
     free[bp.start : bp.start + bp.width] = True
     if fit_betas:
         free[q : q + body.num_betas] = True
     shared = np.zeros_like(free)
     if share_betas and fit_betas:
         shared[q : q + body.num_betas] = True
-    priors = dict(shape_prior=shape_prior, pose_prior=pose_prior, gmm_prior=gmm_weight)
-    starts = [state]
+    starts: list[np.ndarray | None] = [None]
     if multi_start and "body_pose" not in (init or {}):
-        other = state.copy()
-        other.pose[:, bp.start : bp.start + bp.width] = _natural_pose(body, bp)
-        starts.append(other)
-    best: tuple[State, np.ndarray, np.ndarray] | None = None
-    for first in starts:
-        state, more = first, 0
-        for factor in anneal:
-            terms = _terms(
-                body, kmap, camera, targets, weights, scale, sigma, free, shared,
-                **{key: value * factor for key, value in priors.items()},
-                limit_prior=joint_limits, bend_prior=bending, gmm=gmm, smooth=smoothness,
-            )  # fmt: skip
-            state, cost, converged, used = levenberg_marquardt(body, terms, state, max_iter=max_iter, tol=tol)
-            more += used
-        iterations += more
-        if best is None:
-            best = (state, cost, converged)
-            continue
-        coupled = bool(shared.any() or smoothness) and batch > 1
-        better = np.full(batch, cost.sum() < best[1].sum()) if coupled else cost < best[1]
-        best = (_where(better, state, best[0]), np.where(better, cost, best[1]), np.where(better, converged, best[2]))
-    assert best is not None  # starts holds at least the placed state
-    state, _, converged = best
+        starts.append(_natural_pose(body, bp))  # stage 2 also from a natural pose (the better is kept)
+    setup = _Setup(
+        body, kmap, start, init or {}, targets, weights, free, shared, sigma,
+        priors=dict(shape_prior=shape_prior, pose_prior=pose_prior, gmm_prior=gmm_weight, vposer_prior=vposer_weight),
+        fixed=dict(limit_prior=joint_limits, bend_prior=bending, gmm=gmm, vposer=vposer, smooth=smoothness),
+        anneal=anneal, starts=starts, max_iter=max_iter, tol=tol,
+    )  # fmt: skip
+    if estimate_focal:
+        state, converged, iterations, terms = estimate_focal_length(setup, _stages, camera, focal_prior)
+        camera = terms.camera
+    else:
+        state, _, converged, iterations, terms, _ = _stages(setup, camera)
     dist = reprojection(body, terms, state)
     visible = weights > 0
     error = (dist * visible).sum(1) / visible.sum(1)
@@ -328,4 +388,5 @@ def fit_keypoints(
         reprojection_error=error,
         converged=converged,
         iterations=iterations,
+        camera=camera,
     )

@@ -7,7 +7,16 @@ cost ``Σ_k c_k ρ(|π(x_k) − y_k|²)``, ``ρ(e²) = σ² e² / (σ² + e²)``
 the body's depth become metres, so the priors' weights do not depend on the image size). It is
 minimised by Gauss–Newton with iteratively reweighted residuals (weights ``c ρ'(e²)``, a majoriser of
 the robust cost) and Levenberg damping, on the exact Jacobian of the model's points. The priors of
-:mod:`smplcore.fit.priors` enter as residuals. Bodies are independent (each with its own damping)
+:mod:`smplcore.fit.priors` (and VPoser's encoder mean, :mod:`smplcore.fit.vposer`) enter as residuals.
+
+With ``Terms.estimate_focal`` the flat parameters carry one more column, ``s = log(f / f₀)`` (``f₀`` the
+camera's focal length, both f_x and f_y scaled alike), shared by the batch; a weak prior ``w s²``
+(counted once for the batch) pulls it towards the camera's focal length. Focal length and depth are
+nearly interchangeable (a body twice as far seen with twice the focal length looks almost the same), so
+the translation columns hold ``T̃`` with the body's position in camera coordinates scaled along:
+``R T + t = e^s (R T̃ + t)``. Moving ``s`` alone then keeps each body's place and size in the image
+and changes only its perspective, which is what the data can tell; :func:`focal_translation` maps
+``T̃`` back to ``T``. Bodies are independent (each with its own damping)
 unless shape is shared or a temporal smoothness couples consecutive bodies; then one sparse system is
 solved for the whole batch.
 """
@@ -22,6 +31,7 @@ from smplcore.fit.body import FitBody, Points, pose_points
 from smplcore.fit.camera import Camera
 from smplcore.fit.priors import GMMPrior, bending_residuals, limit_residuals
 from smplcore.fit.solver import State
+from smplcore.fit.vposer import POSE_WIDTH, VPoserPrior
 
 
 @dataclass(frozen=True)
@@ -41,7 +51,9 @@ class Terms:
     ``free`` (P,) marks the fitted columns of the flat parameters [pose Q, coeffs K, transl 3];
     ``shared`` (P,) those shared by the batch; ``body_cols`` the columns of ``body_pose`` (D,) with
     bounds ``lo``, ``hi`` (D,); ``bend`` (index into body_cols, sign) pairs; ``smooth`` the weight of
-    Σ_t |x_t − x_{t−1}|² over pose and translation columns.
+    Σ_t |x_t − x_{t−1}|² over pose and translation columns. ``vposer`` the VPoser prior on the first 63
+    body-pose values (weight ``vposer_prior``); ``estimate_focal``: the flat parameters end with the
+    shared ``log(f / f₀)`` column, with the prior weight ``focal_prior``.
     """
 
     kmap: KeypointMap
@@ -66,6 +78,11 @@ class Terms:
     gmm_prior: float = 0.0
     smooth: float = 0.0
     smooth_cols: np.ndarray | None = None
+    vposer: VPoserPrior | None = None
+    vposer_prior: float = 0.0
+    estimate_focal: bool = False
+    focal_prior: float = 0.0
+    focal_centre: float = 0.0  # the prior's centre, log(f₀ / camera.focal)
 
 
 def flat(state: State) -> np.ndarray:
@@ -74,7 +91,7 @@ def flat(state: State) -> np.ndarray:
 
 def unflat(body: FitBody, x: np.ndarray) -> State:
     q, k = body.num_pose, body.num_coeffs
-    return State(x[:, :q].copy(), x[:, q : q + k].copy(), x[:, q + k :].copy())
+    return State(x[:, :q].copy(), x[:, q : q + k].copy(), x[:, q + k : q + k + 3].copy())
 
 
 def keypoints_3d(body: FitBody, kmap: KeypointMap, state: State, jacobian: bool = False):
@@ -93,7 +110,7 @@ def keypoints_3d(body: FitBody, kmap: KeypointMap, state: State, jacobian: bool 
 
 
 def reprojection(body: FitBody, terms: Terms, state: State) -> np.ndarray:
-    """(B, K) pixel distances of the projected keypoints from their targets."""
+    """(B, K) pixel distances of the projected keypoints (by ``terms.camera``) from their targets."""
     pts, _ = keypoints_3d(body, terms.kmap, state)
     return np.linalg.norm(terms.camera.project(pts) - terms.targets, axis=-1)
 
@@ -121,6 +138,14 @@ def _prior_parts(terms: Terms, x: np.ndarray):
         best, res, jac = terms.gmm.residuals(theta)
         parts.append((terms.gmm_prior, res, jac, terms.body_cols))
         const = 2 * terms.gmm_prior * terms.gmm.penalty[best]
+    if terms.vposer is not None and terms.vposer_prior:
+        cols = terms.body_cols[:POSE_WIDTH]
+        res, jac = terms.vposer.residuals(x[:, cols])
+        parts.append((terms.vposer_prior, res, jac, cols))
+    if terms.estimate_focal and terms.focal_prior:
+        # one camera for the batch: each body carries 1/B of the prior
+        res = x[:, -1:] - terms.focal_centre
+        parts.append((terms.focal_prior / len(x), res, np.ones_like(res), np.array([x.shape[1] - 1])))
     return parts, const
 
 
@@ -133,16 +158,35 @@ def smooth_cost(terms: Terms, x: np.ndarray) -> np.ndarray:
     return cost
 
 
+def focal_translation(body: FitBody, camera: Camera, x: np.ndarray) -> np.ndarray:
+    """(B, 3) translations ``T`` of flat parameters (B, P + 1) that end with ``s = log(f/f₀)`` and hold
+    ``T̃``: ``R T + t = e^s (R T̃ + t)``."""
+    q, k = body.num_pose, body.num_coeffs
+    grow = np.exp(x[:, -1:])
+    return (
+        (x[:, q + k : q + k + 3] @ camera.rotation.T + camera.translation) * grow - camera.translation
+    ) @ camera.rotation
+
+
 def evaluate(body: FitBody, terms: Terms, x: np.ndarray, system: bool = True):
     """Cost (B,) at flat parameters ``x`` (B, P) and, with ``system``, the Gauss–Newton matrices
     H (B, F, F) and gradients g (B, F) over the free columns F (smoothness excluded)."""
     state = unflat(body, x)
+    if terms.estimate_focal:
+        state.transl = focal_translation(body, terms.camera, x)
     pts, jac = keypoints_3d(body, terms.kmap, state, system)
     s2 = (terms.scale**2)[:, None]
-    if system:
-        uv, d_uv = terms.camera.project_jacobian(pts)
-    else:
-        uv = terms.camera.project_jacobian(pts)[0]
+    uv, d_uv = terms.camera.project_jacobian(pts)
+    if terms.estimate_focal:  # u = c + e^s (u₀ − c)
+        grow = np.exp(x[:, -1])[:, None, None]
+        uv = terms.camera.center + grow * (uv - terms.camera.center)
+        d_uv = grow[..., None] * d_uv
+        if jac is not None:  # dT/dT̃ = e^s I, dT/ds = Rᵀ (R T + t): the translation's columns
+            tc = body.num_pose + body.num_coeffs + np.arange(3)
+            d_ts = (state.transl @ terms.camera.rotation.T + terms.camera.translation) @ terms.camera.rotation
+            jac_s = jac[..., tc] @ d_ts[:, None, :, None]  # (B, K, 3, 1)
+            jac = np.concatenate([jac, jac_s], axis=-1)
+            jac[..., tc] *= grow[..., None]
     e = uv - terms.targets
     e2 = np.sum(e * e, axis=-1)
     sig2 = terms.sigma**2
@@ -155,7 +199,10 @@ def evaluate(body: FitBody, terms: Terms, x: np.ndarray, system: bool = True):
         return cost, None, None
     cols = np.flatnonzero(terms.free)
     irls = terms.weights * sig2 * sig2 / (sig2 + e2) ** 2 * s2  # (B, K)
+    assert jac is not None  # asked for with system
     j2 = d_uv @ jac[..., cols]  # (B, K, 2, F)
+    if terms.estimate_focal and terms.free[-1]:  # the focal's own effect on the pixels: ∂u/∂s = u − c
+        j2[..., -1] += uv - terms.camera.center
     jw = j2 * np.sqrt(irls)[:, :, None, None]
     batch, num_k = e.shape[:2]
     jw = jw.reshape(batch, 2 * num_k, len(cols))
@@ -243,7 +290,15 @@ def levenberg_marquardt(
     Returns the state, (B,) costs, (B,) converged flags (relative cost decrease below ``tol`` or a step
     below ``step_tol``) and the iterations run.
     """
-    x = flat(state)
+    x, cost, converged, iterations = solve_flat(body, terms, flat(state), max_iter=max_iter, tol=tol, step_tol=step_tol)
+    return unflat(body, x), cost, converged, iterations
+
+
+def solve_flat(
+    body: FitBody, terms: Terms, x: np.ndarray, *, max_iter: int = 20, tol: float = 1e-6, step_tol: float = 1e-6
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """:func:`levenberg_marquardt` on flat parameters (B, P), or (B, P + 1) with ``terms.estimate_focal``."""
+    x = np.array(x, dtype=np.float64)
     batch = len(x)
     cols = np.flatnonzero(terms.free)
     coupled = batch > 1 and (bool(terms.shared[cols].any()) or bool(terms.smooth))
@@ -275,6 +330,8 @@ def levenberg_marquardt(
         if coupled:
             decrease = np.full(batch, (cost.sum() - new_cost.sum()) / max(cost.sum(), 1e-300))
         small = np.max(np.abs(step), axis=1) < step_tol
+        if coupled:  # bodies that share columns stop together (a stopped body would keep stale shared values)
+            small = np.full(batch, bool(small.all()))
         x = np.where(better[:, None], trial, x)
         factor = np.maximum(1 / 3, 1 - (2 * np.clip(gain, 0, 1) - 1) ** 3)
         damping = np.where(better, np.maximum(damping * factor, 1e-9), np.where(active, damping * growth, damping))
@@ -288,4 +345,4 @@ def levenberg_marquardt(
             cost = np.where(better, cost_new, cost)
             hess = np.where(better[:, None, None], hess_new, hess)
             grad = np.where(better[:, None], grad_new, grad)
-    return unflat(body, x), cost, converged, iterations
+    return x, cost, converged, iterations

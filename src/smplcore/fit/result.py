@@ -30,6 +30,8 @@ class FitResult:
     reprojection_error : (B,) mean distance (pixels) of the projected keypoints, or None.
     converged : (B,) whether the solver converged for each body.
     iterations : refinement iterations run.
+    camera : a 2D fit's :class:`~smplcore.fit.Camera` (with the estimated focal length when it was
+        estimated), or None.
     """
 
     params: dict[str, Any]
@@ -38,6 +40,7 @@ class FitResult:
     reprojection_error: np.ndarray | None = None
     converged: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     iterations: int = 0
+    camera: Any = None
 
     @property
     def all_converged(self) -> bool:
