@@ -1,11 +1,14 @@
 """Fitting: model parameters from observations (vertices, joints), and conversion between models.
 
-``fit_vertices`` starts from a closed-form initialiser (per-part Procrustes rotations, linear least
-squares for shape and translation) and refines with Levenberg–Marquardt on the full model (pose
-correctives included), batched over bodies: the exact gradient over every point from batched products
-(:mod:`smplcore.fit.dense`), the Gauss–Newton matrix from a subset (:mod:`smplcore.fit.gauss_newton`).
-Works with torch models of :func:`smplcore.create` and the NumPy :class:`smplcore.BodyModel` alike (the
-solver runs in NumPy either way; products over the mesh in float32 for float32 models).
+``fit_vertices`` starts from a closed-form initialiser (per-part Procrustes rotations, with the joints
+the regressor reads off the targets as bone ends, and linear least squares for shape and translation)
+and refines with Levenberg–Marquardt on the full model (pose correctives included), batched over bodies
+and threads: first on a few hundred points with their exact Gauss–Newton matrix
+(:mod:`smplcore.fit.normal_matrix`), then, where the model's own forward shows the whole mesh is not yet
+at the precision's floor, on every point with the exact gradient (:mod:`smplcore.fit.dense`,
+:mod:`smplcore.fit.gauss_newton`). Works with torch models of :func:`smplcore.create` and the NumPy
+:class:`smplcore.BodyModel` alike (the solver runs in NumPy either way; products over points in float32
+for float32 models).
 
 ``fit_keypoints`` fits 2D keypoints seen by a pinhole :class:`Camera` (OpenCV convention), SMPLify-style:
 robust reprojection cost, staged Levenberg–Marquardt, open priors (anatomical joint limits, elbow/knee

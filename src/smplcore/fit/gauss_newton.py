@@ -2,10 +2,12 @@
 
 Each iteration evaluates the cost and the exact gradient ``Jᵀ r`` over all the objective's points with
 :mod:`smplcore.fit.dense` (a few matrix products per batch, no dense Jacobian), and takes the Gauss–Newton
-matrix ``Jᵀ W J`` from a small, well-spread subset of points (dense Jacobian, scaled to the whole set's
-weight). The step is still a descent step and the fixed point is the optimum of the whole objective —
+matrix ``Jᵀ W J`` of a small, well-spread subset of points (:mod:`smplcore.fit.normal_matrix`, part by
+part, scaled to the whole set's weight), recomputed every few iterations and after a step that moved far
+or failed. The step is still a descent step and the fixed point is the optimum of the whole objective —
 only the convergence rate depends on how well the subset's matrix stands for the whole set's. Bodies
-are solved in chunks (independent problems) unless shape coefficients are shared over the batch.
+are solved in chunks (independent problems, in threads) unless shape coefficients are shared over the
+batch; then the per-body work (cost, gradient, matrix) is split over threads and the step is one system.
 """
 
 from __future__ import annotations
