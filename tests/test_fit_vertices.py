@@ -283,3 +283,9 @@ def test_closed_form_start_of_the_open_model():
     assert start.vertex_error.mean() < 0.012, start.vertex_error.mean()
     exact = fit.fit_vertices(model, target)
     assert exact.vertex_error.max() < 1e-5 and exact.iterations <= 8
+
+
+def test_a_dual_quaternion_model_is_refused_by_name():
+    model = smplcore.BodyModel(model_type="open", skinning="dqs")
+    with pytest.raises(ValueError, match="skinning='lbs'"):
+        fit.fit_vertices(model, np.zeros((1, 13380, 3)))

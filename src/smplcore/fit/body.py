@@ -109,6 +109,12 @@ class FitBody:
             raise TypeError(
                 f"model: expected a model of smplcore.create() or a smplcore.BodyModel, got {type(model).__name__}"
             )
+        if getattr(setup, "skinning", "lbs") != "lbs":
+            raise ValueError(
+                f"model: fitting solves the model's linear blend skinning, this model was made with "
+                f"skinning={setup.skinning!r}; fit a model made with skinning='lbs' (the default) and pose the "
+                "result with either"
+            )
         cached = getattr(model, "_smplcore_fit_body", None)
         if cached is not None and cached[0] is setup:
             return cached[1]
