@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from smplcore.errors import ShapeError
-from smplcore.fit.body import FitBody
+from smplcore.fit.body import FitBody, pose_points
 from smplcore.fit.gauss_newton import refine
 from smplcore.fit.initialize import initialize
 from smplcore.fit.parallel import chunks, map_chunks
@@ -110,18 +110,17 @@ def working_dtype(model: Any) -> type:
 
 def model_distances(model: Any, body: FitBody, state: State, point_ids: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """(B, n) distances between ``targets`` (B, n, 3) and the points ``point_ids`` (vertices, then skeleton
-    joints offset by V) of ``model`` posed by ``state``: the model's own forward (the fastest whole-mesh
-    evaluation there is), in the targets' precision."""
+    joints offset by V) of ``model`` posed by ``state``: the vertices from the model's own forward (the
+    fastest whole-mesh evaluation there is), the joints from the kinematic chain (a model's ``joint_mapper``
+    may reorder its output joints), in the targets' precision."""
     params = state_to_params(body, model, state)
     if is_torch_model(model):
         import torch
 
         with torch.no_grad():
-            out = model(**params)
-        verts, joints = out.vertices.cpu().numpy(), out.joints.cpu().numpy()
+            verts = model(**params).vertices.cpu().numpy()
     else:
-        out = model(**params)
-        verts, joints = out.vertices, out.joints
+        verts = model(**params).vertices
     num_verts = body.num_vertices
     if len(point_ids) == num_verts and np.array_equal(point_ids, np.arange(num_verts)):
         diff = verts - targets
@@ -129,7 +128,9 @@ def model_distances(model: Any, body: FitBody, state: State, point_ids: np.ndarr
         mesh = point_ids < num_verts
         diff = np.empty(targets.shape, targets.dtype)
         diff[:, mesh] = verts[:, point_ids[mesh]]
-        diff[:, ~mesh] = joints[:, point_ids[~mesh] - num_verts]
+        if not mesh.all():
+            joints = body.points(point_ids[~mesh])
+            diff[:, ~mesh] = pose_points(body, joints, body.full_pose(state.pose), state.coeffs, state.transl).points
         diff -= targets
     return np.sqrt(np.einsum("bnc,bnc->bn", diff, diff))
 
