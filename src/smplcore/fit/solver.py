@@ -165,10 +165,19 @@ def normal_equations(
 
 
 def _step(hess: np.ndarray, grad: np.ndarray, damping: np.ndarray, shared_cols: np.ndarray) -> np.ndarray:
-    """Damped Gauss–Newton step of each body; columns ``shared_cols`` get one value for the whole batch."""
-    damped = hess.copy()
-    diag = np.einsum("bii->bi", damped)
-    diag += damping[:, None] * (diag + 1e-9)
+    """Damped Gauss–Newton step of each body; columns ``shared_cols`` get one value for the whole batch.
+    ``hess`` is damped in place for the solve and restored (a copy of a (B, P, P) stack costs as much as
+    the solve)."""
+    diag = np.einsum("bii->bi", hess)
+    saved = diag.copy()
+    diag += damping[:, None] * (saved + 1e-9)
+    try:
+        return _damped_step(hess, grad, shared_cols)
+    finally:
+        diag[...] = saved
+
+
+def _damped_step(damped: np.ndarray, grad: np.ndarray, shared_cols: np.ndarray) -> np.ndarray:
     if not shared_cols.any():
         return -np.linalg.solve(damped, grad[..., None])[..., 0]
     s, p = np.flatnonzero(shared_cols), np.flatnonzero(~shared_cols)
