@@ -201,6 +201,7 @@ def solve(
     state = start.copy()
     converged = np.zeros(batch, bool)
     dist = np.empty((batch, n), targets.dtype)
+    joints = regressed_joints(body, point_ids, targets, weights)  # bone ends for the initial rotations
 
     def subset_stage(rows: np.ndarray) -> int:
         """Initialiser and LM on the subset (on every point when the subset is all of them)."""
@@ -223,14 +224,13 @@ def solve(
             dist[rows] = part_dist
         return its
 
-    joints = regressed_joints(body, point_ids, targets, weights)
     parts = [np.arange(batch)] if shared.any() else chunks(batch, workers)
     iterations = max(map_chunks(subset_stage, parts, workers))
     if whole:
         return state, dist, converged, iterations
     # the whole set: bodies already at the working precision's floor are done (exact targets); the others
     # run LM on all points with the Gauss-Newton matrix of a sample of every part weighted as the part
-    # (computed once: the subset's optimum is close, a few gradient steps finish)
+    # (recomputed only after a failed or far step: the subset's optimum is close)
     dist[:] = model_distances(model, body, state, point_ids, targets)
     cost = np.einsum("bn,bn,bn->b", weights, dist, dist, dtype=np.float64)
     todo = cost > _floor(dtype) * weights.sum(1)
