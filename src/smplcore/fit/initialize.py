@@ -139,7 +139,7 @@ def initialize(
     ``state`` gives the starting shape (and the pose of undetermined parts); returns a new state.
     Products over the points run in ``dtype``. ``joints``: (B, J, 3) estimates of the posed skeleton
     joints (e.g. the joint regressor applied to target vertices), which join each part's rotation as
-    the ends of its bones, weighted as the part's points.
+    the ends of its bones (weighted by :func:`anchor_weights`).
     """
     pts = obj.points
     state = state.copy()
