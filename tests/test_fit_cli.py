@@ -73,6 +73,7 @@ def test_coco_file_cameras_from_image_sizes(tmp_path, open_model):
     assert main(["fit", str(path), "-o", str(out)]) == 0
     with np.load(out) as data:
         assert data["poses"].shape == (2, 72)
+        np.testing.assert_allclose(data["fit_focal"], np.hypot(1000, 1000))  # the image's diagonal, not estimated
         assert (
             list(data["person"]) == [0, 1] and data["fit_error"].max() < 5.0
         )  # pixels (the pipeline, not the accuracy)

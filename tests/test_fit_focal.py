@@ -1,6 +1,6 @@
 """fit_keypoints(estimate_focal=True): the focal column of the objective, the depth that moves with it,
-recovery on an informative scene, the prior, and the CLI's camera choices (--focal, --no-estimate-focal,
---vposer, --gmm)."""
+recovery on an informative scene, the prior, and the CLI's camera choices (--focal, the image diagonal by
+default, --estimate-focal) and priors (--vposer, --gmm)."""
 
 from __future__ import annotations
 
@@ -177,15 +177,15 @@ def _openpose_folder(folder, model, frames=3):
     return folder
 
 
-def test_cli_estimates_the_focal_length_unless_told(tmp_path, open_model):
+def test_cli_keeps_the_image_diagonal_unless_asked_to_estimate(tmp_path, open_model):
     folder = _openpose_folder(tmp_path / "op", open_model)
     fixed, guessed, estimated = tmp_path / "fixed.npz", tmp_path / "guess.npz", tmp_path / "estimated.npz"
     assert main(["fit", str(folder), "-o", str(fixed), "--focal", "1000", "--center", "500,500"]) == 0
-    assert main(["fit", str(folder), "-o", str(guessed), "--image-size", "1000,1000", "--no-estimate-focal"]) == 0
-    assert main(["fit", str(folder), "-o", str(estimated), "--image-size", "1000,1000"]) == 0
+    assert main(["fit", str(folder), "-o", str(guessed), "--image-size", "1000,1000"]) == 0
+    assert main(["fit", str(folder), "-o", str(estimated), "--image-size", "1000,1000", "--estimate-focal"]) == 0
     with np.load(fixed) as a, np.load(guessed) as b, np.load(estimated) as c:
         np.testing.assert_allclose(a["fit_focal"], 1000.0)
-        np.testing.assert_allclose(b["fit_focal"], np.hypot(1000, 1000))
+        np.testing.assert_allclose(b["fit_focal"], np.hypot(1000, 1000))  # the default: the diagonal, kept
         assert c["fit_focal"].shape == (3, 2) and np.all(c["fit_focal"] == c["fit_focal"][0, 0])  # one per sequence
         assert 700.0 < c["fit_focal"][0, 0] < 2900.0 and not np.isclose(c["fit_focal"][0, 0], np.hypot(1000, 1000))
 
