@@ -4,13 +4,11 @@ default, --estimate-focal) and priors (--vposer, --gmm)."""
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 
 import smplcore
-from fakes_fit2d import CAMERA, natural_poses, pa_mpjpe, scene, write_fake_gmm
+from fakes_fit2d import CAMERA, natural_poses, pa_mpjpe, scene, write_fake_gmm, write_openpose
 from smplcore import fit
 from smplcore import keypoints as kp
 from smplcore.cli import main
@@ -170,11 +168,7 @@ def _openpose_folder(folder, model, frames=3):
     params = natural_poses(model, 1, rng)
     seq = {k: np.repeat(v, frames, 0) for k, v in params.items()}
     keypoints, _, _ = scene(model, seq, np.random.default_rng(0), convention="openpose25")
-    folder.mkdir()
-    for t, frame in enumerate(keypoints):
-        doc = {"version": 1.3, "people": [{"pose_keypoints_2d": frame.reshape(-1).tolist()}]}
-        (folder / f"frame_{t:04d}_keypoints.json").write_text(json.dumps(doc))
-    return folder
+    return write_openpose(folder, keypoints)
 
 
 def test_cli_keeps_the_image_diagonal_unless_asked_to_estimate(tmp_path, open_model):
