@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 import fakes
+from fakes_dmpl import write_dmpl
 from smplcore.cli import main
 from smplcore.motion.synthetic import write_sequence
 
@@ -37,7 +38,8 @@ def _lines() -> list[tuple[str, str]]:
     out = []
     for doc in DOCS:
         for block in FENCE.finditer(doc.read_text()):
-            for raw in block.group(1).splitlines():
+            text = re.sub(r"\s*\\\n\s*", " ", block.group(1))  # a line continued with a backslash is one line
+            for raw in text.splitlines():
                 line = raw.split(" #", 1)[0].strip()  # the documented lines' comments follow " #"
                 if line.startswith("smplcore "):
                     out.append((f"{doc.relative_to(ROOT)}: {line}", line))
@@ -93,8 +95,14 @@ def inputs(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("docs-cli-inputs")
     fakes.write_all(root / "models")
     fakes.write_smplx(root / "models" / "smplx", gender="female")  # docs/view.md opens a female SMPL-X
+    # docs/motion.md: AMASS's layout of the SMPL+H and DMPL downloads, an AMASS tree under two names
+    (root / "models" / "smplh" / "female").mkdir()
+    (root / "models" / "smplh" / "female" / "model.npz").symlink_to(root / "models" / "smplh" / "SMPLH_FEMALE.npz")
+    write_dmpl(root / "models" / "dmpls" / "female", name="model.npz")
     write_sequence(root / "walk.npz", 12, fps=30.0, model_type="smplh")
+    write_sequence(root / "walk_poses.npz", 12, fps=30.0, model_type="smplh")
     write_sequence(root / "amass" / "CMU" / "walk_poses.npz", 12, fps=30.0, model_type="smplh")
+    (root / "amass_data").symlink_to(root / "amass", target_is_directory=True)
     rng = np.random.default_rng(1)
     params = {
         "betas": rng.normal(0.0, 1.0, (1, 10)),
@@ -151,8 +159,12 @@ def test_documented_cli_line_runs(line, inputs, tmp_path, monkeypatch, capsys):
     if args[0] == "view":
         assert re.search(r"serving [1-9]\d* body\(ies\) at http://", printed), printed
     if args[0] == "process":
-        written = list(Path(args[2]).rglob("*.npz"))
-        assert len(written) == 1 and "vertices" in np.load(written[0]), f"{line}: {written}"
+        written = [p for p in Path(args[2]).rglob("*") if p.suffix in (".npz", ".npy")]
+        assert len(written) == 1, f"{line}: {written}"
+        if "--vertices" in args:
+            assert "vertices" in np.load(written[0]), f"{line}: {written}"
+        if "--recipe" in args:  # humanml3d: the 52 SMPL+H joints of every int(30 / 20) = 1st frame
+            assert np.load(written[0]).shape == (12, 52, 3), f"{line}: {written}"
     if args[0] == "fit":
         assert re.search(r"^[1-9]\d* fitted, 0 skipped", printed, re.M), printed
     for name in outputs:
