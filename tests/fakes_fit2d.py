@@ -1,8 +1,10 @@
 """Synthetic 2D keypoint scenes for the fitting tests: open-model bodies in front of a known camera,
-and a fake SMPLify GMM file (seeded random data with the official file's structure)."""
+written as OpenPose or COCO files, and a fake SMPLify GMM file (seeded random data with the official
+file's structure)."""
 
 from __future__ import annotations
 
+import json
 import pickle
 from pathlib import Path
 
@@ -41,6 +43,35 @@ def scene(model, params, rng, noise: float = 1.0, convention: str = "coco17", ca
     exact = camera.project(j3)
     noisy = exact + rng.normal(0, noise, exact.shape)
     return np.concatenate([noisy, np.ones(noisy.shape[:2] + (1,))], -1), exact, j3
+
+
+def write_openpose(folder: Path, keypoints: np.ndarray) -> Path:
+    """One OpenPose JSON file per frame of ``keypoints`` (T, 25, 3), one person each, named as OpenPose
+    names them (``*_keypoints.json``)."""
+    folder.mkdir(parents=True)
+    for t, frame in enumerate(keypoints):
+        doc = {"version": 1.3, "people": [{"pose_keypoints_2d": np.asarray(frame).reshape(-1).tolist()}]}
+        (folder / f"frame_{t:04d}_keypoints.json").write_text(json.dumps(doc))
+    return folder
+
+
+def write_coco(path: Path, keypoints: np.ndarray, width: int, height: int, image_id: int = 1) -> Path:
+    """A COCO keypoint file: the people ``keypoints`` (B, 17, 2 or 3) in one image of ``width`` x ``height``,
+    every point labelled and visible (v = 2)."""
+    points = np.asarray(keypoints)[..., :2]
+    annotations = [
+        {"id": i + 1, "image_id": image_id, "category_id": 1, "num_keypoints": 17,
+         "keypoints": np.c_[person, np.full(len(person), 2)].reshape(-1).tolist()}
+        for i, person in enumerate(points)
+    ]  # fmt: skip
+    doc = {
+        "images": [{"id": image_id, "file_name": f"{image_id:012d}.jpg", "width": width, "height": height}],
+        "annotations": annotations,
+        "categories": [{"id": 1, "name": "person"}],
+    }
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(doc))
+    return path
 
 
 def pa_mpjpe(a: np.ndarray, b: np.ndarray) -> np.ndarray:

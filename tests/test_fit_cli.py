@@ -9,7 +9,7 @@ import pytest
 
 import smplcore
 from export_helpers import validate
-from fakes_fit2d import CAMERA, natural_poses, scene
+from fakes_fit2d import CAMERA, natural_poses, scene, write_coco, write_openpose
 from smplcore import keypoints as kp
 from smplcore.cli import main
 from smplcore.motion import load_motion
@@ -32,11 +32,7 @@ def sequence(open_model):
 
 def _openpose_folder(folder, model, params):
     keypoints, _, _ = scene(model, params, np.random.default_rng(0), convention="openpose25")
-    folder.mkdir()
-    for t, frame in enumerate(keypoints):
-        doc = {"version": 1.3, "people": [{"pose_keypoints_2d": frame.reshape(-1).tolist()}]}
-        (folder / f"frame_{t:04d}_keypoints.json").write_text(json.dumps(doc))
-    return folder
+    return write_openpose(folder, keypoints)
 
 
 def test_openpose_folder_round_trip_to_glb(tmp_path, open_model, sequence, capsys):
@@ -63,16 +59,12 @@ def test_coco_file_cameras_from_image_sizes(tmp_path, open_model):
     params = natural_poses(open_model, 2, rng)
     cam = smplcore.fit.Camera.from_image_size(1000, 1000)
     keypoints, _, _ = scene(open_model, params, rng, camera=cam)
-    annotations = [
-        {"image_id": 5, "keypoints": np.c_[keypoints[i, :, :2], np.full(17, 2)].reshape(-1).tolist()} for i in range(2)
-    ]
-    doc = {"images": [{"id": 5, "width": 1000, "height": 1000}], "annotations": annotations}
-    path = tmp_path / "people.json"
-    path.write_text(json.dumps(doc))
+    path = write_coco(tmp_path / "people.json", keypoints, 1000, 1000, image_id=5)
     out = tmp_path / "people.npz"
     assert main(["fit", str(path), "-o", str(out)]) == 0
     with np.load(out) as data:
         assert data["poses"].shape == (2, 72)
+        np.testing.assert_allclose(data["fit_focal"], np.hypot(1000, 1000))  # the image's diagonal, not estimated
         assert (
             list(data["person"]) == [0, 1] and data["fit_error"].max() < 5.0
         )  # pixels (the pipeline, not the accuracy)

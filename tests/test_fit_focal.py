@@ -1,16 +1,14 @@
 """fit_keypoints(estimate_focal=True): the focal column of the objective, the depth that moves with it,
-recovery on an informative scene, the prior, and the CLI's camera choices (--focal, --no-estimate-focal,
---vposer, --gmm)."""
+recovery on an informative scene, the prior, and the CLI's camera choices (--focal, the image diagonal by
+default, --estimate-focal) and priors (--vposer, --gmm)."""
 
 from __future__ import annotations
-
-import json
 
 import numpy as np
 import pytest
 
 import smplcore
-from fakes_fit2d import CAMERA, natural_poses, pa_mpjpe, scene, write_fake_gmm
+from fakes_fit2d import CAMERA, natural_poses, pa_mpjpe, scene, write_fake_gmm, write_openpose
 from smplcore import fit
 from smplcore import keypoints as kp
 from smplcore.cli import main
@@ -170,22 +168,18 @@ def _openpose_folder(folder, model, frames=3):
     params = natural_poses(model, 1, rng)
     seq = {k: np.repeat(v, frames, 0) for k, v in params.items()}
     keypoints, _, _ = scene(model, seq, np.random.default_rng(0), convention="openpose25")
-    folder.mkdir()
-    for t, frame in enumerate(keypoints):
-        doc = {"version": 1.3, "people": [{"pose_keypoints_2d": frame.reshape(-1).tolist()}]}
-        (folder / f"frame_{t:04d}_keypoints.json").write_text(json.dumps(doc))
-    return folder
+    return write_openpose(folder, keypoints)
 
 
-def test_cli_estimates_the_focal_length_unless_told(tmp_path, open_model):
+def test_cli_keeps_the_image_diagonal_unless_asked_to_estimate(tmp_path, open_model):
     folder = _openpose_folder(tmp_path / "op", open_model)
     fixed, guessed, estimated = tmp_path / "fixed.npz", tmp_path / "guess.npz", tmp_path / "estimated.npz"
     assert main(["fit", str(folder), "-o", str(fixed), "--focal", "1000", "--center", "500,500"]) == 0
-    assert main(["fit", str(folder), "-o", str(guessed), "--image-size", "1000,1000", "--no-estimate-focal"]) == 0
-    assert main(["fit", str(folder), "-o", str(estimated), "--image-size", "1000,1000"]) == 0
+    assert main(["fit", str(folder), "-o", str(guessed), "--image-size", "1000,1000"]) == 0
+    assert main(["fit", str(folder), "-o", str(estimated), "--image-size", "1000,1000", "--estimate-focal"]) == 0
     with np.load(fixed) as a, np.load(guessed) as b, np.load(estimated) as c:
         np.testing.assert_allclose(a["fit_focal"], 1000.0)
-        np.testing.assert_allclose(b["fit_focal"], np.hypot(1000, 1000))
+        np.testing.assert_allclose(b["fit_focal"], np.hypot(1000, 1000))  # the default: the diagonal, kept
         assert c["fit_focal"].shape == (3, 2) and np.all(c["fit_focal"] == c["fit_focal"][0, 0])  # one per sequence
         assert 700.0 < c["fit_focal"][0, 0] < 2900.0 and not np.isclose(c["fit_focal"][0, 0], np.hypot(1000, 1000))
 

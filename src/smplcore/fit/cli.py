@@ -21,7 +21,8 @@ import numpy as np
 EPILOG = """\
 examples:
   smplcore fit openpose_frames/ -o fit.npz --focal 1000 --center 960,540
-  smplcore fit person_keypoints.json -o fit.npz                # COCO: focal estimated per image
+  smplcore fit person_keypoints.json -o fit.npz                # COCO: each image's size, focal = diagonal
+  smplcore fit openpose_frames/ -o fit.npz --image-size 1920,1080 --estimate-focal
   smplcore fit openpose_frames/ -o fit.npz --image-size 1920,1080 --vposer V02_05/
   smplcore fit joints.npy -o fit.npz --convention coco17        # or --joint-names pelvis,left_hip,...
   smplcore fit smplh_motion.npz -o smplx.npz --model-type smplx --model-path models/ --source-model-path models/
@@ -63,12 +64,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--center", type=_floats, default=None, help="2D: principal point cx,cy (pixels)")
     p.add_argument(
         "--image-size", type=_floats, default=None,
-        help="2D: W,H; principal point at the centre; without --focal the focal length is estimated, from the "
-        "image diagonal",
+        help="2D: W,H; principal point at the centre; without --focal the focal length is the image diagonal",
     )  # fmt: skip
     p.add_argument(
-        "--no-estimate-focal", dest="estimate_focal", action="store_false",
-        help="2D without --focal: keep the image diagonal as the focal length instead of estimating it",
+        "--estimate-focal", action=argparse.BooleanOptionalAction, default=False,
+        help="2D without --focal: estimate the focal length, starting from the image diagonal (about six times "
+        "the time; recovered only roughly, for wide lenses and people near the camera; see docs/fit.md)",
     )  # fmt: skip
     p.add_argument("--vposer", default=None, metavar="PATH", help="2D: VPoser v2 pose prior (V02_05/ or its .ckpt)")
     p.add_argument("--gmm", default=None, metavar="PATH", help="2D: SMPLify's gmm_08.pkl pose prior")

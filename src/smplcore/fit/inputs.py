@@ -38,7 +38,7 @@ class FitSettings:
     person: int = 0
     smoothness: float = 1e-3
     source_model_path: str | None = None
-    estimate_focal: bool = True  # 2D without ``focal``: estimate it (from the image diagonal)
+    estimate_focal: bool = False  # 2D without ``focal``: estimate it from the image diagonal (else keep that)
     vposer: str | None = None
     gmm: str | None = None
     extra: dict[str, Any] = field(default_factory=dict)
