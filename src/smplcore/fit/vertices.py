@@ -210,6 +210,9 @@ def solve(
         if init_iterations:
             guess = None if joints is None else joints[rows]
             part = initialize(body, sub, part, iterations=init_iterations, dtype=dtype, joints=guess)
+        if not max_iter:  # the closed form alone: measured on every point below
+            state.put(rows, part)
+            return 0
         part, _, part_dist, converged[rows], its = refine(
             body,
             sub,
@@ -226,7 +229,7 @@ def solve(
 
     parts = [np.arange(batch)] if shared.any() else chunks(batch, workers)
     iterations = max(map_chunks(subset_stage, parts, workers))
-    if whole:
+    if whole and max_iter:
         return state, dist, converged, iterations
     # the whole set: bodies already at the working precision's floor are done (exact targets); the others
     # run LM on all points with the Gauss-Newton matrix of a sample of every part weighted as the part
@@ -236,8 +239,8 @@ def solve(
     todo = cost > _floor(dtype) * weights.sum(1)
     if shared.any() and todo.any():
         todo[:] = True  # shared coefficients couple the bodies
-    if not todo.any():
-        return state, dist, converged, iterations
+    if not todo.any() or not max_iter:
+        return state, dist, converged | ~todo, iterations
     bodies = np.flatnonzero(todo)
     h_rows, h_w = part_sample(body, point_ids, weights[bodies], _FULL_PER_PART)
     part, _, dist[bodies], converged[bodies], more = refine(
