@@ -219,12 +219,9 @@ def shape_and_translation(
     if obj.fit_transl:
         hess[:, k:, k:] = weights.sum(0)[:, None, None] * np.eye(3)
         grad[:, k:] = res.sum(0).T
-    import os
-
-    extra = float(os.environ.get("INIT_PRIOR", "0")) * weights.sum(0)[:, None]
-    if (obj.shape_prior or extra.any()) and k:
-        hess[:, np.arange(k), np.arange(k)] += obj.shape_prior + extra
-        grad[:, :k] += (obj.shape_prior + extra) * state.coeffs[:, free]
+    if obj.shape_prior and k:
+        hess[:, np.arange(k), np.arange(k)] += obj.shape_prior
+        grad[:, :k] += obj.shape_prior * state.coeffs[:, free]
     shared = np.zeros(size, bool)
     shared[:k] = obj.shared[free]
     if batch == 1:
