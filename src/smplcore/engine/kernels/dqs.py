@@ -3,15 +3,18 @@
 :func:`smplcore.engine.reference.dual_quaternion_skinning` puts each joint's dual quaternion ``q_j`` in the
 hemisphere of the vertex's most influential joint ``d``: a sign ``s_dj`` per (body, vertex, joint). Here
 
-* every joint's ``q_j`` is first put in the hemisphere of its parent's (level by level down the tree):
+* every joint's ``q_j`` is first put in the hemisphere of its parent's (a joint's sign flips once per joint
+  on its path from the root that points away from its parent: one product with the tree's ancestor matrix):
   then ``s_dj = +1`` for nearly every pair ``(d, j)`` that shares a vertex (parent and child, siblings),
   and the blend is ``Σ_j w_j q_j``: one product per block of vertices with only the joints that weight it,
-  as linear blend skinning's (:mod:`smplcore.engine.kernels.blocked`, the same blocks), 8 rows per body
-  instead of 12;
+  as linear blend skinning's (:mod:`smplcore.engine.kernels.blocked`, the same blocks), 10 rows per body
+  (:data:`LAYOUT`: the 8 values, two of them twice) instead of 12;
 * the pairs ``(d, j)`` whose sign is -1 for some body get ``-2 w_j q_j`` added, from a (P, V) matrix of
   pair weights (pair ``(d, j)`` holds vertex ``v``'s weight of ``j`` when ``v``'s dominant joint is ``d``),
   only in the blocks and body chunks where such a pair occurs (usually none);
-* the blended dual quaternions are normalised and applied on (bodies, vertices) planes.
+* the blended dual quaternions are normalised and applied on (bodies, 3, vertices) stacks of planes, a
+  dozen whole-stack operations per step (:func:`_apply_into`); for a few bodies in torch, by NumPy on the
+  tensors' memory (:data:`_TORCH_MIN_PLANE`).
 
 The result equals the reference's up to the overall sign of a vertex's blend, which the transform does
 not depend on. Under torch's autograd the same arithmetic runs as plain (recorded) operations.
@@ -19,6 +22,7 @@ not depend on. Under torch's autograd the same arithmetic runs as plain (recorde
 
 from __future__ import annotations
 
+import functools
 import sys
 from dataclasses import dataclass
 from typing import Any
@@ -92,39 +96,105 @@ def pair_blocks(pairs_: Pairs, blocks: tuple[blocked.VertexBlock, ...]) -> tuple
     return tuple(out)
 
 
-def joint_dual_quaternions(transforms: Any, tree: KinematicTree) -> Any:
-    """(B, J, 8) dual quaternions of (B, J, 12) skinning transforms (depth order), each in the hemisphere
-    of its parent's."""
+# The 10 values per joint (and per blended vertex) of a dual quaternion (w, x, y, z, wₑ, xₑ, yₑ, zₑ) that the
+# blend product carries, in this order: x y z x y w wₑ xₑ yₑ zₑ. Rows 0:3 are r = (x, y, z); rows 1:4 and 2:5
+# the same cyclically shifted (r_a and r_b of the cross products (r × u)_c = r_a u_b - r_b u_a), so that each
+# step of the transform is one operation on three planes; rows 2:6 hold the four values of the rotation
+# quaternion (for its norm); row 6 is wₑ and rows 7:10 are rₑ.
+LAYOUT = (1, 2, 3, 1, 2, 0, 4, 5, 6, 7)
+ROWS = len(LAYOUT)
+
+
+def _quaternion_constants() -> tuple[np.ndarray, np.ndarray]:
+    """(10, 16) ``S`` and (12, 4) ``D``: for a rotation R and translation t, ``[1, R00, R01, ..., R22] @ S`` is
+    ``4 q qᵀ`` (row-major) of R's quaternion ``q = (w, x, y, z)`` (Shepperd's table: its diagonal is
+    ``1 ± R00 ± R11 ± R22``, the rest sums and differences of opposite entries), and ``vec(t qᵀ) @ D`` is the
+    dual part ``½ (0, t) q``."""
+    s = np.zeros((10, 4, 4))
+    s[0] = np.eye(4)
+    for k, signs in enumerate(((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1))):
+        for i in range(3):
+            s[1 + 4 * i, k, k] = signs[i]
+    # 4 w x = R21 - R12, 4 w y = R02 - R20, 4 w z = R10 - R01, 4 x y = R01 + R10, 4 x z = R02 + R20, 4 y z = R12 + R21
+    for (a, b), (i, j), sign in (
+        ((0, 1), (2, 1), 1), ((0, 1), (1, 2), -1), ((0, 2), (0, 2), 1), ((0, 2), (2, 0), -1),
+        ((0, 3), (1, 0), 1), ((0, 3), (0, 1), -1), ((1, 2), (0, 1), 1), ((1, 2), (1, 0), 1),
+        ((1, 3), (0, 2), 1), ((1, 3), (2, 0), 1), ((2, 3), (1, 2), 1), ((2, 3), (2, 1), 1),
+    ):  # fmt: skip
+        s[1 + 3 * i + j, a, b] = s[1 + 3 * i + j, b, a] = sign
+    basis = np.eye(4)
+    d = np.stack([0.5 * reference.quaternion_product(basis[1 + i], basis[j]) for i in range(3) for j in range(4)])
+    return s.reshape(10, 16), d
+
+
+_SHEPPERD, _DUAL = _quaternion_constants()
+
+
+def _constant(matrix: np.ndarray, like: Any) -> Any:
+    """``matrix`` in the namespace, dtype (and device) of ``like``."""
+    return like.new_tensor(matrix) if is_torch(like) else matrix.astype(like.dtype, copy=False)
+
+
+def dual_quaternions(transforms: Any) -> Any:
+    """(B, J, 8) unit dual quaternions of (B, J, 12) skinning transforms: the same as
+    :func:`smplcore.engine.reference.dual_quaternions` (the same branch of Shepperd's method, so the same
+    sign) in a few whole-array operations."""
     xp = namespace(transforms)
     batch, num_joints = transforms.shape[:2]
-    dq = reference.dual_quaternions(transforms[..., :9].reshape(batch, num_joints, 3, 3), transforms[..., 9:])
-    start, stop = tree.level_bounds[0]
-    levels = [dq[:, start:stop]]
-    for (start, stop), slots in zip(tree.level_bounds[1:], tree.indices(dq)["slots"]):
-        q = dq[:, start:stop]
-        parent = levels[-1][:, slots]
-        levels.append(xp.where((q[..., :4] * parent[..., :4]).sum(axis=-1, keepdims=True) < 0, -q, q))
-    return xp.concat(levels, axis=1)
+    s = _constant(_SHEPPERD, transforms)
+    outer = (transforms[..., :9] @ s[1:] + s[0]).reshape(batch, num_joints, 4, 4)  # 4 q qᵀ
+    diagonal = outer.reshape(batch, num_joints, 16)[..., ::5]  # 4 w², 4 x², 4 y², 4 z²
+    best = diagonal.argmax(axis=-1)[..., None]  # the largest: at least 1
+    take = sys.modules["torch"].take_along_dim if is_torch(transforms) else np.take_along_axis
+    real = take(outer, best[..., None], -2)[..., 0, :] / (2 * xp.sqrt(take(diagonal, best, -1)))  # 4 s q / 4 s
+    t_q = (transforms[..., 9:, None] * real[..., None, :]).reshape(batch, num_joints, 12)
+    return xp.concat([real, t_q @ _constant(_DUAL, transforms)], axis=-1)
+
+
+@functools.lru_cache(maxsize=16)
+def _ancestors(parents: tuple[int, ...], order: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """For the joints in depth ``order``: the (J,) row of each one's parent (the root's: itself) and the (J, J)
+    matrix whose row i marks row i and its ancestors below the root."""
+    row_of = {joint: i for i, joint in enumerate(order)}
+    parent_rows = np.array([row_of[max(parents[joint], 0)] for joint in order])
+    ancestors = np.zeros((len(order), len(order)))
+    for i in range(1, len(order)):
+        ancestors[i] = ancestors[parent_rows[i]]
+        ancestors[i, i] = 1
+    return parent_rows, ancestors
+
+
+def joint_dual_quaternions(transforms: Any, tree: KinematicTree) -> Any:
+    """(B, J, 8) dual quaternions of (B, J, 12) skinning transforms (depth order), each in the hemisphere
+    of its parent's: a joint's sign flips once per joint on its path from the root (itself included) whose
+    quaternion points away from its parent's."""
+    xp = namespace(transforms)
+    dq = dual_quaternions(transforms)
+    parent_rows, ancestors = _ancestors(tree.parents, tree.order)
+    real = dq[..., :4]
+    away = (real * real[:, index(parent_rows, dq)]).sum(axis=-1) < 0  # (B, J)
+    one = xp.ones_like(dq[..., 0])
+    flips = xp.where(away, one, 0 * one) @ _constant(ancestors.T, dq)  # (B, J) flips along the path
+    return dq * (1 - 2 * (flips % 2))[..., None]
 
 
 def _prepare(transforms: Any, tree: KinematicTree, pairs_: Pairs) -> tuple[Any, Any, np.ndarray | None]:
-    """The joint rows (J, B·8), the correction rows (P, B·8) (or None) and the host (B, P) mask of the
-    pairs whose sign is -1 (or None when there is none)."""
+    """The joint rows (J, B·10) in :data:`LAYOUT`, the correction rows (P, B·10) (or None) and the host (B, P)
+    mask of the pairs whose sign is -1 (or None when there is none)."""
     host = host_numpy(transforms) if is_torch(transforms) else None  # a small batch: per-joint math in NumPy
     if host is None:
         args = (transforms, pairs_.dominant_index, pairs_.joint_index)
     else:
         args = (host, pairs_.dominant, pairs_.joint)
     dq = joint_dual_quaternions(args[0], tree)
-    joint = dq[:, args[2]]
-    flipped = (dq[:, args[1], :4] * joint[..., :4]).sum(axis=-1) < 0  # (B, P)
+    layout = index(LAYOUT, dq)
+    flipped = (dq[:, args[1], :4] * dq[:, args[2], :4]).sum(axis=-1) < 0  # (B, P)
     mask = flipped.detach().cpu().numpy() if is_torch(flipped) else np.asarray(flipped)
     correction = None
     if mask.any():
-        xp = namespace(dq)
-        keep = xp.where(flipped[..., None], xp.ones_like(joint[..., :1]), xp.zeros_like(joint[..., :1]))
-        correction = _rows(-2 * joint * keep)
-    rows = _rows(dq)
+        joint = dq[:, args[2]][..., layout]
+        correction = _rows(namespace(dq).where(flipped[..., None], -2 * joint, 0 * joint))
+    rows = _rows(dq[..., layout])
     if host is not None:
         rows = from_numpy(np.ascontiguousarray(rows))
         correction = None if correction is None else from_numpy(np.ascontiguousarray(correction))
@@ -132,7 +202,7 @@ def _prepare(transforms: Any, tree: KinematicTree, pairs_: Pairs) -> tuple[Any, 
 
 
 def _rows(x: Any) -> Any:
-    """(B, K, 8) → (K, B·8)."""
+    """(B, K, 10) → (K, B·10)."""
     t = x.permute(1, 0, 2) if is_torch(x) else x.transpose(1, 0, 2)
     return t.reshape(t.shape[0], -1)
 
@@ -166,33 +236,42 @@ def skin(
     size = max(b.stop - b.start for b in blocks)
     sub = min(batch, max(1, _APPLY_VALUES // size))  # bodies per step
     out = blocked.empty((batch, num_verts, 3), transforms)
-    blend_buf = None if all(b.packed_weights is not None for b in blocks) else blocked.empty((8 * sub * size,), out)
-    work = blocked.empty((8 * sub * size,), out)  # work planes of _apply_into
+    blend_buf = None if all(b.packed_weights is not None for b in blocks) else blocked.empty((ROWS * sub * size,), out)
+    work = blocked.empty((_WORK_PLANES * sub * size,), out)  # work planes of _apply_into
     for block, pblock in zip(blocks, pblocks):
         n = block.stop - block.start
         if rest is None:
             block_rest = gemm.product(feats, block.packed_blend).view(batch, 3, n)
         else:
             block_rest = rest[:, :, block.start : block.stop]
-        block_rows = blocked.block_rows(rows, block).T  # (B·8, J_b)
-        fix = None if flipped is None else correction[pblock.index].T  # (B·8, P_b)
+        block_rows = blocked.block_rows(rows, block).T  # (B·10, J_b)
+        fix = None if flipped is None else correction[pblock.index].T  # (B·10, P_b)
         for b0 in range(0, batch, sub):
             b1 = min(batch, b0 + sub)
             m = b1 - b0
-            chunk_rows = block_rows[8 * b0 : 8 * b1]
+            chunk_rows = block_rows[ROWS * b0 : ROWS * b1]
             if block.packed_weights is not None:
                 q = gemm.product(chunk_rows, block.packed_weights)
             else:
                 assert blend_buf is not None  # allocated where some weights are not packed
-                q = blocked._matmul(chunk_rows, block.weights_t, blend_buf[: 8 * m * n].reshape(8 * m, n))
+                q = blocked._matmul(chunk_rows, block.weights_t, blend_buf[: ROWS * m * n].reshape(ROWS * m, n))
             if fix is not None and flipped is not None and flipped[b0:b1, pblock.pairs].any():
-                q = q + fix[8 * b0 : 8 * b1] @ pblock.weights_t
-            _apply_into(q.reshape(m, 8, n), block_rest[b0:b1], out[b0:b1, block.start : block.stop], work)
+                q = q + fix[ROWS * b0 : ROWS * b1] @ pblock.weights_t
+            args = (q.reshape(m, ROWS, n), block_rest[b0:b1], out[b0:b1, block.start : block.stop], work)
+            if is_torch(q) and m * n < _TORCH_MIN_PLANE:  # a few bodies: NumPy on the same memory is faster
+                args = tuple(a.numpy() for a in args)
+            _apply_into(*args)
     return out
 
 
-# Values per (bodies × block) plane while skinning (as in the blocked kernel).
-_APPLY_VALUES = 1 << 17
+# Values per (bodies × block) plane while skinning: the blend (10 planes) and the work planes (18) of a step
+# stay in the last-level cache.
+_APPLY_VALUES = 1 << 15
+_WORK_PLANES = 18
+# Below this many values per plane (B = 1 and a few bodies), torch's per-operation overhead (and its threads,
+# which it starts on operations over 32768 values) costs more than the arithmetic: the transform then runs
+# NumPy's operations on the tensors' memory.
+_TORCH_MIN_PLANE = 1 << 15
 
 
 def _skin_recorded(rest, rows, correction, flipped, blocks, pblocks) -> Any:
@@ -205,18 +284,18 @@ def _skin_recorded(rest, rows, correction, flipped, blocks, pblocks) -> Any:
         q = blocked.block_rows(rows, block).T @ block.weights_t
         if flipped is not None and flipped[:, pblock.pairs].any():
             q = q + correction[pblock.index].T @ pblock.weights_t
-        out.append(_apply(q.reshape(batch, 8, n), rest[:, :, block.start : block.stop]))
+        out.append(_apply(q.reshape(batch, ROWS, n), rest[:, :, block.start : block.stop]))
     moved = out[0] if len(out) == 1 else xp.concat(out, axis=2)  # (B, 3, V)
     return moved.mT
 
 
 def _apply(q: Any, v: Any) -> Any:
-    """(B, 3, n) rest vertices ``v`` moved by the (B, 8, n) blended dual quaternions ``q``:
+    """(B, 3, n) rest vertices ``v`` moved by the (B, 10, n) blended dual quaternions ``q`` (:data:`LAYOUT`):
     :func:`smplcore.engine.reference.apply_dual_quaternions` with the coordinates first, and its two cross
     products with ``r`` merged: ``v + 2 / |q|² (r × (r × v + w v + rₑ) + w rₑ - wₑ r)``."""
-    w, r, we, re = q[:, :1], q[:, 1:4], q[:, 4:5], q[:, 5:8]
+    r, w, we, re = q[:, 0:3], q[:, 5:6], q[:, 6:7], q[:, 7:10]
     moved = _cross(r, _cross(r, v) + w * v + re) + w * re - we * r
-    return v + (2 / (q[:, :4] * q[:, :4]).sum(axis=1, keepdims=True)) * moved
+    return v + (2 / (q[:, 2:6] * q[:, 2:6]).sum(axis=1, keepdims=True)) * moved
 
 
 def _cross(a: Any, b: Any) -> Any:
@@ -228,56 +307,52 @@ def _cross(a: Any, b: Any) -> Any:
 
 
 def _apply_into(q: Any, v: Any, target: Any, work: Any) -> None:
-    """:func:`_apply` written into ``target`` (m, n, 3), plane by plane (fused multiply-adds in torch), with
-    ``work`` holding at least 8 (m, n) planes."""
+    """:func:`_apply` written into ``target`` (m, n, 3), three planes per operation, with ``work`` holding
+    :data:`_WORK_PLANES` (m, n) planes. A cross product ``r × u`` is ``r_a u_b - r_b u_a`` over the three
+    components at once, with ``r_a, r_b`` rows 1:4 and 2:5 of ``q`` and ``u`` copied to (x, y, z, x, y)."""
     m, _, n = q.shape
-    w, rx, ry, rz, we, ex, ey, ez = (q[:, i] for i in range(8))
-    vx, vy, vz = v[:, 0], v[:, 1], v[:, 2]
-    ix, iy, iz, mx, my, mz, scale, scratch = (work[i * m * n : (i + 1) * m * n].reshape(m, n) for i in range(8))
-    cyclic = ((0, 1, 2), (1, 2, 0), (2, 0, 1))  # (c, a, b): (r × u)_c = r_a u_b - r_b u_a
-    r, e, vs, inner, moved = (rx, ry, rz), (ex, ey, ez), (vx, vy, vz), (ix, iy, iz), (mx, my, mz)
-    for c, a, b in cyclic:  # inner = r × v + w v + rₑ
-        _mul(w, vs[c], inner[c])
-        _add(inner[c], e[c])
-        _fma(inner[c], r[a], vs[b], 1, scratch)
-        _fma(inner[c], r[b], vs[a], -1, scratch)
-    for c, a, b in cyclic:  # moved = r × inner + w rₑ - wₑ r
-        _mul(w, e[c], moved[c])
-        _fma(moved[c], we, r[c], -1, scratch)
-        _fma(moved[c], r[a], inner[b], 1, scratch)
-        _fma(moved[c], r[b], inner[a], -1, scratch)
-    _mul(w, w, scale)
-    for rc in r:
-        _fma(scale, rc, rc, 1, scratch)
-    if is_torch(scale):
+    planes = work[: _WORK_PLANES * m * n].reshape(m, _WORK_PLANES, n)
+    if is_torch(q):
+        torch = sys.modules["torch"]
+        r, r_a, r_b, w, we, e = (q.narrow(1, i, k) for i, k in ((0, 3), (1, 3), (2, 3), (5, 1), (6, 1), (7, 3)))
+        v5, inner5, moved, scale = (planes.narrow(1, i, k) for i, k in ((0, 5), (5, 5), (10, 3), (17, 1)))
+        inner = inner5.narrow(1, 0, 3)
+        v5.narrow(1, 0, 3).copy_(v)
+        v5.narrow(1, 3, 2).copy_(v.narrow(1, 0, 2))
+        torch.addcmul(e, w, v, out=inner)  # inner = r × v + w v + rₑ
+        inner.addcmul_(r_a, v5.narrow(1, 2, 3)).addcmul_(r_b, v5.narrow(1, 1, 3), value=-1)
+        inner5.narrow(1, 3, 2).copy_(inner.narrow(1, 0, 2))
+        torch.mul(w, e, out=moved)  # moved = r × inner + w rₑ - wₑ r
+        moved.addcmul_(we, r, value=-1).addcmul_(r_a, inner5.narrow(1, 2, 3)).addcmul_(
+            r_b, inner5.narrow(1, 1, 3), value=-1
+        )
+        torch.mul(w, w, out=scale)  # |q|², plane by plane (faster than a sum over the rows)
+        for c in range(3):
+            scale.addcmul_(r.narrow(1, c, 1), r.narrow(1, c, 1))
         scale.reciprocal_().mul_(2)
-        for c in range(3):
-            sys.modules["torch"].addcmul(vs[c], scale, moved[c], out=target[..., c])
-    else:
-        np.divide(2, scale, out=scale)
-        for c in range(3):
-            np.multiply(scale, moved[c], out=scratch)
-            np.add(vs[c], scratch, out=target[..., c])
-
-
-def _mul(a: Any, b: Any, out: Any) -> None:
-    if is_torch(a):
-        sys.modules["torch"].mul(a, b, out=out)
-    else:
-        np.multiply(a, b, out=out)
-
-
-def _add(acc: Any, a: Any) -> None:
-    if is_torch(acc):
-        acc.add_(a)
-    else:
-        np.add(acc, a, out=acc)
-
-
-def _fma(acc: Any, a: Any, b: Any, sign: int, scratch: Any) -> None:
-    """``acc += sign * a * b`` in place."""
-    if is_torch(acc):
-        acc.addcmul_(a, b, value=sign)
-    else:
-        np.multiply(a, b, out=scratch)
-        (np.add if sign > 0 else np.subtract)(acc, scratch, out=acc)
+        target.copy_(torch.addcmul(v, scale, moved, out=moved).transpose(1, 2))  # (a strided write is slower)
+        return
+    r, r_a, r_b, w, we, e = q[:, 0:3], q[:, 1:4], q[:, 2:5], q[:, 5:6], q[:, 6:7], q[:, 7:10]
+    v5, inner5, moved, tmp, scale = planes[:, 0:5], planes[:, 5:10], planes[:, 10:13], planes[:, 13:17], planes[:, 17:]
+    inner, tmp3 = inner5[:, :3], tmp[:, :3]
+    np.copyto(v5[:, :3], v)
+    np.copyto(v5[:, 3:], v[:, :2])
+    np.multiply(r_a, v5[:, 2:5], out=inner)
+    np.multiply(r_b, v5[:, 1:4], out=tmp3)
+    inner -= tmp3
+    np.multiply(w, v, out=tmp3)
+    inner += tmp3
+    inner += e
+    np.copyto(inner5[:, 3:], inner[:, :2])
+    np.multiply(r_a, inner5[:, 2:5], out=moved)
+    np.multiply(r_b, inner5[:, 1:4], out=tmp3)
+    moved -= tmp3
+    np.multiply(w, e, out=tmp3)
+    moved += tmp3
+    np.multiply(we, r, out=tmp3)
+    moved -= tmp3
+    np.multiply(q[:, 2:6], q[:, 2:6], out=tmp)
+    np.sum(tmp, axis=1, keepdims=True, out=scale)
+    np.divide(2, scale, out=scale)
+    moved *= scale
+    np.add(v, moved, out=target.transpose(0, 2, 1))
