@@ -179,7 +179,7 @@ def joint_dual_quaternions(transforms: Any, tree: KinematicTree) -> Any:
 
 
 def _prepare(transforms: Any, tree: KinematicTree, pairs_: Pairs) -> tuple[Any, Any, np.ndarray | None]:
-    """The joint rows (J, B·10) in :data:`LAYOUT`, the correction rows (P, B·10) (or None) and the host (B, P)
+    """The joint rows (J, 10·B) (:func:`_rows`), the correction rows (P, 10·B) (or None) and the host (B, P)
     mask of the pairs whose sign is -1 (or None when there is none)."""
     host = host_numpy(transforms) if is_torch(transforms) else None  # a small batch: per-joint math in NumPy
     if host is None:
@@ -202,9 +202,18 @@ def _prepare(transforms: Any, tree: KinematicTree, pairs_: Pairs) -> tuple[Any, 
 
 
 def _rows(x: Any) -> Any:
-    """(B, K, 10) → (K, B·10)."""
-    t = x.permute(1, 0, 2) if is_torch(x) else x.transpose(1, 0, 2)
+    """(B, K, 10) → (K, 10·B): per row, the values of :data:`LAYOUT` one after the other, each for every body
+    (column ``k·B + b``), so that a product gives (10, bodies, vertices) planes."""
+    t = x.permute(1, 2, 0) if is_torch(x) else x.transpose(1, 2, 0)
     return t.reshape(t.shape[0], -1)
+
+
+def _chunk(rows: Any, b0: int, b1: int) -> Any:
+    """(10·m, K): the columns of bodies ``b0:b1`` of (K, 10·B) :func:`_rows`, as rows of a product's left side."""
+    k = rows.shape[0]
+    t = rows.reshape(k, ROWS, -1)[:, :, b0:b1]
+    t = t.permute(1, 2, 0) if is_torch(t) else t.transpose(1, 2, 0)
+    return t.reshape(-1, k)
 
 
 def skin(
@@ -234,7 +243,7 @@ def skin(
     batch = transforms.shape[0]
     num_verts = blocks[-1].stop
     size = max(b.stop - b.start for b in blocks)
-    sub = min(batch, max(1, _APPLY_VALUES // size))  # bodies per step
+    sub = min(batch, max(1, _APPLY_VALUES[is_torch(transforms)] // size))  # bodies per step
     out = blocked.empty((batch, num_verts, 3), transforms)
     blend_buf = None if all(b.packed_weights is not None for b in blocks) else blocked.empty((ROWS * sub * size,), out)
     work = blocked.empty((_WORK_PLANES * sub * size,), out)  # work planes of _apply_into
@@ -244,29 +253,30 @@ def skin(
             block_rest = gemm.product(feats, block.packed_blend).view(batch, 3, n)
         else:
             block_rest = rest[:, :, block.start : block.stop]
-        block_rows = blocked.block_rows(rows, block).T  # (B·10, J_b)
-        fix = None if flipped is None else correction[pblock.index].T  # (B·10, P_b)
+        block_rows = blocked.block_rows(rows, block)  # (J_b, 10·B)
+        fix = None if flipped is None else correction[pblock.index]  # (P_b, 10·B)
         for b0 in range(0, batch, sub):
             b1 = min(batch, b0 + sub)
             m = b1 - b0
-            chunk_rows = block_rows[ROWS * b0 : ROWS * b1]
+            chunk_rows = _chunk(block_rows, b0, b1)
             if block.packed_weights is not None:
                 q = gemm.product(chunk_rows, block.packed_weights)
             else:
                 assert blend_buf is not None  # allocated where some weights are not packed
                 q = blocked._matmul(chunk_rows, block.weights_t, blend_buf[: ROWS * m * n].reshape(ROWS * m, n))
             if fix is not None and flipped is not None and flipped[b0:b1, pblock.pairs].any():
-                q = q + fix[ROWS * b0 : ROWS * b1] @ pblock.weights_t
-            args = (q.reshape(m, ROWS, n), block_rest[b0:b1], out[b0:b1, block.start : block.stop], work)
+                q = q + _chunk(fix, b0, b1) @ pblock.weights_t
+            args = (q.reshape(ROWS, m, n), block_rest[b0:b1], out[b0:b1, block.start : block.stop], work)
             if is_torch(q) and m * n < _TORCH_MIN_PLANE:  # a few bodies: NumPy on the same memory is faster
                 args = tuple(a.numpy() for a in args)
             _apply_into(*args)
     return out
 
 
-# Values per (bodies × block) plane while skinning: the blend (10 planes) and the work planes (18) of a step
-# stay in the last-level cache.
-_APPLY_VALUES = 1 << 15
+# Values per (bodies × block) plane while skinning, NumPy and torch: the blend (10 planes) and the work planes
+# (18) of a step stay in cache; torch, whose operations have more overhead and run on all its threads, takes
+# twice as many (measured on SMPL and the open model at B = 512).
+_APPLY_VALUES = (1 << 15, 1 << 16)
 _WORK_PLANES = 18
 # Below this many values per plane (B = 1 and a few bodies), torch's per-operation overhead (and its threads,
 # which it starts on operations over 32768 values) costs more than the arithmetic: the transform then runs
@@ -281,78 +291,74 @@ def _skin_recorded(rest, rows, correction, flipped, blocks, pblocks) -> Any:
     out = []
     for block, pblock in zip(blocks, pblocks):
         n = block.stop - block.start
-        q = blocked.block_rows(rows, block).T @ block.weights_t
+        q = _chunk(blocked.block_rows(rows, block), 0, batch) @ block.weights_t
         if flipped is not None and flipped[:, pblock.pairs].any():
-            q = q + correction[pblock.index].T @ pblock.weights_t
-        out.append(_apply(q.reshape(batch, ROWS, n), rest[:, :, block.start : block.stop]))
-    moved = out[0] if len(out) == 1 else xp.concat(out, axis=2)  # (B, 3, V)
-    return moved.mT
+            q = q + _chunk(correction[pblock.index], 0, batch) @ pblock.weights_t
+        out.append(_apply(q.reshape(ROWS, batch, n), rest[:, :, block.start : block.stop].swapaxes(0, 1)))
+    moved = out[0] if len(out) == 1 else xp.concat(out, axis=2)  # (3, B, V)
+    return xp.moveaxis(moved, 0, -1)
 
 
 def _apply(q: Any, v: Any) -> Any:
-    """(B, 3, n) rest vertices ``v`` moved by the (B, 10, n) blended dual quaternions ``q`` (:data:`LAYOUT`):
+    """(3, B, n) rest vertices ``v`` moved by the (10, B, n) blended dual quaternions ``q`` (:data:`LAYOUT`):
     :func:`smplcore.engine.reference.apply_dual_quaternions` with the coordinates first, and its two cross
     products with ``r`` merged: ``v + 2 / |q|² (r × (r × v + w v + rₑ) + w rₑ - wₑ r)``."""
-    r, w, we, re = q[:, 0:3], q[:, 5:6], q[:, 6:7], q[:, 7:10]
+    r, w, we, re = q[0:3], q[5:6], q[6:7], q[7:10]
     moved = _cross(r, _cross(r, v) + w * v + re) + w * re - we * r
-    return v + (2 / (q[:, 2:6] * q[:, 2:6]).sum(axis=1, keepdims=True)) * moved
+    return v + (2 / (q[2:6] * q[2:6]).sum(axis=0, keepdims=True)) * moved
 
 
 def _cross(a: Any, b: Any) -> Any:
-    """Cross products along axis 1 of (m, 3, n) arrays (written out: torch's linalg.cross is slow here)."""
+    """Cross products along axis 0 of (3, ...) arrays (written out: torch's linalg.cross is slow here)."""
     xp = namespace(a)
-    ax, ay, az = a[:, 0], a[:, 1], a[:, 2]
-    bx, by, bz = b[:, 0], b[:, 1], b[:, 2]
-    return xp.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=1)
+    ax, ay, az = a[0], a[1], a[2]
+    bx, by, bz = b[0], b[1], b[2]
+    return xp.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=0)
 
 
 def _apply_into(q: Any, v: Any, target: Any, work: Any) -> None:
-    """:func:`_apply` written into ``target`` (m, n, 3), three planes per operation, with ``work`` holding
-    :data:`_WORK_PLANES` (m, n) planes. A cross product ``r × u`` is ``r_a u_b - r_b u_a`` over the three
-    components at once, with ``r_a, r_b`` rows 1:4 and 2:5 of ``q`` and ``u`` copied to (x, y, z, x, y)."""
-    m, _, n = q.shape
-    planes = work[: _WORK_PLANES * m * n].reshape(m, _WORK_PLANES, n)
+    """:func:`_apply` written into ``target`` (m, n, 3) for (10, m, n) ``q`` and (m, 3, n) ``v``, with ``work``
+    holding :data:`_WORK_PLANES` (m, n) planes: each step one operation on three contiguous planes. A cross
+    product ``r × u`` is ``r_a u_b - r_b u_a`` over the three components at once, with ``r_a, r_b`` rows 1:4 and
+    2:5 of ``q`` and ``u`` copied to (x, y, z, x, y)."""
+    _, m, n = q.shape
+    planes = work[: _WORK_PLANES * m * n].reshape(_WORK_PLANES, m, n)
+    r, r_a, r_b, w, we, e = q[0:3], q[1:4], q[2:5], q[5:6], q[6:7], q[7:10]
+    v5, inner5, moved, tmp, scale = planes[0:5], planes[5:10], planes[10:13], planes[13:17], planes[17]
+    v3, inner, tmp3 = v5[:3], inner5[:3], tmp[:3]
     if is_torch(q):
         torch = sys.modules["torch"]
-        r, r_a, r_b, w, we, e = (q.narrow(1, i, k) for i, k in ((0, 3), (1, 3), (2, 3), (5, 1), (6, 1), (7, 3)))
-        v5, inner5, moved, scale = (planes.narrow(1, i, k) for i, k in ((0, 5), (5, 5), (10, 3), (17, 1)))
-        inner = inner5.narrow(1, 0, 3)
-        v5.narrow(1, 0, 3).copy_(v)
-        v5.narrow(1, 3, 2).copy_(v.narrow(1, 0, 2))
-        torch.addcmul(e, w, v, out=inner)  # inner = r × v + w v + rₑ
-        inner.addcmul_(r_a, v5.narrow(1, 2, 3)).addcmul_(r_b, v5.narrow(1, 1, 3), value=-1)
-        inner5.narrow(1, 3, 2).copy_(inner.narrow(1, 0, 2))
+        v3.copy_(v.transpose(0, 1))
+        v5[3:].copy_(v3[:2])
+        torch.addcmul(e, w, v3, out=inner)  # inner = r × v + w v + rₑ
+        inner.addcmul_(r_a, v5[2:5]).addcmul_(r_b, v5[1:4], value=-1)
+        inner5[3:].copy_(inner[:2])
         torch.mul(w, e, out=moved)  # moved = r × inner + w rₑ - wₑ r
-        moved.addcmul_(we, r, value=-1).addcmul_(r_a, inner5.narrow(1, 2, 3)).addcmul_(
-            r_b, inner5.narrow(1, 1, 3), value=-1
-        )
-        torch.mul(w, w, out=scale)  # |q|², plane by plane (faster than a sum over the rows)
+        moved.addcmul_(we, r, value=-1).addcmul_(r_a, inner5[2:5]).addcmul_(r_b, inner5[1:4], value=-1)
+        torch.mul(w[0], w[0], out=scale)  # |q|², plane by plane (faster than a sum over the rows)
         for c in range(3):
-            scale.addcmul_(r.narrow(1, c, 1), r.narrow(1, c, 1))
+            scale.addcmul_(r[c], r[c])
         scale.reciprocal_().mul_(2)
-        target.copy_(torch.addcmul(v, scale, moved, out=moved).transpose(1, 2))  # (a strided write is slower)
+        target.copy_(torch.addcmul(v3, scale, moved, out=moved).permute(1, 2, 0))  # (a strided write is slower)
         return
-    r, r_a, r_b, w, we, e = q[:, 0:3], q[:, 1:4], q[:, 2:5], q[:, 5:6], q[:, 6:7], q[:, 7:10]
-    v5, inner5, moved, tmp, scale = planes[:, 0:5], planes[:, 5:10], planes[:, 10:13], planes[:, 13:17], planes[:, 17:]
-    inner, tmp3 = inner5[:, :3], tmp[:, :3]
-    np.copyto(v5[:, :3], v)
-    np.copyto(v5[:, 3:], v[:, :2])
-    np.multiply(r_a, v5[:, 2:5], out=inner)
-    np.multiply(r_b, v5[:, 1:4], out=tmp3)
+    np.copyto(v3, v.transpose(1, 0, 2))
+    np.copyto(v5[3:], v3[:2])
+    np.multiply(r_a, v5[2:5], out=inner)
+    np.multiply(r_b, v5[1:4], out=tmp3)
     inner -= tmp3
-    np.multiply(w, v, out=tmp3)
+    np.multiply(w, v3, out=tmp3)
     inner += tmp3
     inner += e
-    np.copyto(inner5[:, 3:], inner[:, :2])
-    np.multiply(r_a, inner5[:, 2:5], out=moved)
-    np.multiply(r_b, inner5[:, 1:4], out=tmp3)
+    np.copyto(inner5[3:], inner[:2])
+    np.multiply(r_a, inner5[2:5], out=moved)
+    np.multiply(r_b, inner5[1:4], out=tmp3)
     moved -= tmp3
     np.multiply(w, e, out=tmp3)
     moved += tmp3
     np.multiply(we, r, out=tmp3)
     moved -= tmp3
-    np.multiply(q[:, 2:6], q[:, 2:6], out=tmp)
-    np.sum(tmp, axis=1, keepdims=True, out=scale)
+    np.multiply(q[2:6], q[2:6], out=tmp)
+    np.sum(tmp, axis=0, out=scale)
     np.divide(2, scale, out=scale)
     moved *= scale
-    np.add(v, moved, out=target.transpose(0, 2, 1))
+    np.add(v3, moved, out=target.transpose(2, 0, 1))
