@@ -357,8 +357,10 @@ def _apply_into(q: Any, v: Any, target: Any, work: Any) -> None:
     moved += tmp3
     np.multiply(we, r, out=tmp3)
     moved -= tmp3
-    np.multiply(q[2:6], q[2:6], out=tmp)
-    np.sum(tmp, axis=0, out=scale)
+    np.multiply(q[2:6], q[2:6], out=tmp)  # |q|²: added plane by plane (faster than np.sum over the rows)
+    np.add(tmp[0], tmp[1], out=scale)
+    scale += tmp[2]
+    scale += tmp[3]
     np.divide(2, scale, out=scale)
     moved *= scale
     np.add(v3, moved, out=target.transpose(2, 0, 1))
