@@ -224,18 +224,19 @@ def skin(
     pairs_: Pairs,
     tree: KinematicTree,
     feats: Any = None,
+    basis: Any = None,
 ) -> Any:
     """(B, V, 3) posed vertices by dual-quaternion skinning.
 
     Parameters
     ----------
     rest : (B, 3, V) rest-pose vertices (shaped, with pose correctives), one row per coordinate; or None
-        when ``feats`` and every block's ``packed_blend`` give them block by block.
+        when ``feats @ basis`` gives them block by block (:func:`_rest_planes`).
     transforms : (B, J, 12) skinning transforms in depth order (the rows of the blocks' weights).
     blocks : vertex blocks of the transposed skinning weights (:func:`blocked.vertex_blocks`).
     pblocks : :func:`pair_blocks` of ``pairs_`` and ``blocks``; pairs_ : :func:`pairs` of the weights.
     tree : the kinematic tree.
-    feats : (B, R) blend features, for ``rest=None``.
+    feats : (B, R) blend features and basis : (≥ R, 3 V) coordinate-major blend basis, for ``rest=None``.
     """
     rows, correction, flipped = _prepare(transforms, tree, pairs_)
     if records_gradients(rest, rows):
@@ -247,12 +248,10 @@ def skin(
     out = blocked.empty((batch, num_verts, 3), transforms)
     blend_buf = None if all(b.packed_weights is not None for b in blocks) else blocked.empty((ROWS * sub * size,), out)
     work = blocked.empty((_WORK_PLANES * sub * size,), out)  # work planes of _apply_into
+    rest_buf = blocked.empty((5 * batch * size,), out)
     for block, pblock in zip(blocks, pblocks):
         n = block.stop - block.start
-        if rest is None:
-            block_rest = gemm.product(feats, block.packed_blend).view(batch, 3, n)
-        else:
-            block_rest = rest[:, :, block.start : block.stop]
+        v5 = _rest_planes(rest_buf[: 5 * batch * n].reshape(5, batch, n), block, rest, feats, basis)
         block_rows = blocked.block_rows(rows, block)  # (J_b, 10·B)
         fix = None if flipped is None else correction[pblock.index]  # (P_b, 10·B)
         for b0 in range(0, batch, sub):
@@ -266,18 +265,49 @@ def skin(
                 q = blocked._matmul(chunk_rows, block.weights_t, blend_buf[: ROWS * m * n].reshape(ROWS * m, n))
             if fix is not None and flipped is not None and flipped[b0:b1, pblock.pairs].any():
                 q = q + _chunk(fix, b0, b1) @ pblock.weights_t
-            args = (q.reshape(ROWS, m, n), block_rest[b0:b1], out[b0:b1, block.start : block.stop], work)
+            args = (q.reshape(ROWS, m, n), v5[:, b0:b1], out[b0:b1, block.start : block.stop], work)
             if is_torch(q) and m * n < _TORCH_MIN_PLANE:  # a few bodies: NumPy on the same memory is faster
                 args = tuple(a.numpy() for a in args)
             _apply_into(*args)
     return out
 
 
-# Values per (bodies × block) plane while skinning, NumPy and torch: the blend (10 planes) and the work planes
-# (18) of a step stay in cache; torch, whose operations have more overhead and run on all its threads, takes
-# twice as many (measured on SMPL and the open model at B = 512).
+def _rest_planes(v5: Any, block: blocked.VertexBlock, rest: Any, feats: Any, basis: Any) -> Any:
+    """``v5`` (5, B, n) filled with the rest vertices of ``block``: planes x, y, z, x, y (for the cross
+    products of :func:`_apply_into`), from ``rest`` or from ``feats @ basis``: the block's packed basis
+    columns, one product for a lone block (three strided ones are slow for a few bodies), else one per
+    coordinate straight into its plane (a mesh-sized rest array would cost its page faults at every call)."""
+    batch, n = v5.shape[1:]
+    if rest is None:
+        num_rows, num_verts = feats.shape[1], basis.shape[1] // 3
+        if block.packed_blend is not None and num_rows == basis.shape[0]:
+            rest = gemm.product(feats, block.packed_blend).view(batch, 3, n)
+        elif n == num_verts:
+            rest = (feats @ basis[:num_rows]).reshape(batch, 3, n)  # (a few bodies: small)
+        else:
+            for c in range(3):
+                start = c * num_verts + block.start
+                blocked._matmul(feats, basis[:num_rows, start : start + n], v5[c])
+    else:
+        rest = rest[:, :, block.start : block.stop]
+    if rest is not None:
+        _copy(v5[:3], rest.transpose(0, 1) if is_torch(rest) else rest.transpose(1, 0, 2))
+    _copy(v5[3:], v5[:2])
+    return v5
+
+
+def _copy(target: Any, source: Any) -> None:
+    if is_torch(target):
+        target.copy_(source)
+    else:
+        np.copyto(target, source)
+
+
+# Values per (bodies × block) plane while skinning, NumPy and torch: the blend (10 planes), the work planes
+# (13) and the rest vertices (5) of a step stay in cache; torch, whose operations have more overhead and run on
+# all its threads, takes twice as many (measured on SMPL and the open model at B = 512).
 _APPLY_VALUES = (1 << 15, 1 << 16)
-_WORK_PLANES = 18
+_WORK_PLANES = 13
 # Below this many values per plane (B = 1 and a few bodies), torch's per-operation overhead (and its threads,
 # which it starts on operations over 32768 values) costs more than the arithmetic: the transform then runs
 # NumPy's operations on the tensors' memory.
@@ -316,20 +346,18 @@ def _cross(a: Any, b: Any) -> Any:
     return xp.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=0)
 
 
-def _apply_into(q: Any, v: Any, target: Any, work: Any) -> None:
-    """:func:`_apply` written into ``target`` (m, n, 3) for (10, m, n) ``q`` and (m, 3, n) ``v``, with ``work``
-    holding :data:`_WORK_PLANES` (m, n) planes: each step one operation on three contiguous planes. A cross
-    product ``r × u`` is ``r_a u_b - r_b u_a`` over the three components at once, with ``r_a, r_b`` rows 1:4 and
-    2:5 of ``q`` and ``u`` copied to (x, y, z, x, y)."""
+def _apply_into(q: Any, v5: Any, target: Any, work: Any) -> None:
+    """:func:`_apply` written into ``target`` (m, n, 3) for (10, m, n) ``q`` and the (5, m, n) rest vertices
+    ``v5`` (x, y, z, x, y: :func:`_rest_planes`), with ``work`` holding :data:`_WORK_PLANES` (m, n) planes: each
+    step one operation on three planes. A cross product ``r × u`` is ``r_a u_b - r_b u_a`` over the three
+    components at once, with ``r_a, r_b`` rows 1:4 and 2:5 of ``q`` and ``u`` in (x, y, z, x, y) planes."""
     _, m, n = q.shape
     planes = work[: _WORK_PLANES * m * n].reshape(_WORK_PLANES, m, n)
     r, r_a, r_b, w, we, e = q[0:3], q[1:4], q[2:5], q[5:6], q[6:7], q[7:10]
-    v5, inner5, moved, tmp, scale = planes[0:5], planes[5:10], planes[10:13], planes[13:17], planes[17]
+    inner5, moved, tmp, scale = planes[0:5], planes[5:8], planes[8:12], planes[12]
     v3, inner, tmp3 = v5[:3], inner5[:3], tmp[:3]
     if is_torch(q):
         torch = sys.modules["torch"]
-        v3.copy_(v.transpose(0, 1))
-        v5[3:].copy_(v3[:2])
         torch.addcmul(e, w, v3, out=inner)  # inner = r × v + w v + rₑ
         inner.addcmul_(r_a, v5[2:5]).addcmul_(r_b, v5[1:4], value=-1)
         inner5[3:].copy_(inner[:2])
@@ -341,8 +369,6 @@ def _apply_into(q: Any, v: Any, target: Any, work: Any) -> None:
         scale.reciprocal_().mul_(2)
         target.copy_(torch.addcmul(v3, scale, moved, out=moved).permute(1, 2, 0))  # (a strided write is slower)
         return
-    np.copyto(v3, v.transpose(1, 0, 2))
-    np.copyto(v5[3:], v3[:2])
     np.multiply(r_a, v5[2:5], out=inner)
     np.multiply(r_b, v5[1:4], out=tmp3)
     inner -= tmp3
