@@ -297,10 +297,11 @@ def _rest_planes(v5: Any, block: blocked.VertexBlock, rest: Any, feats: Any, bas
 
 
 def _copy(target: Any, source: Any) -> None:
-    if is_torch(target):
+    """``target[...] = source``; torch tensors of a few bodies through NumPy (see :data:`_TORCH_MIN_PLANE`)."""
+    if is_torch(target) and target[0].numel() >= _TORCH_MIN_PLANE:  # (k, B, n): planes of B n values
         target.copy_(source)
     else:
-        np.copyto(target, source)
+        np.copyto(*(a.numpy() if is_torch(a) else a for a in (target, source)))
 
 
 # Values per (bodies × block) plane while skinning, NumPy and torch: the blend (10 planes), the work planes
