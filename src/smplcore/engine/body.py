@@ -321,7 +321,7 @@ def _dqs_from_basis(
     tree: KinematicTree,
 ) -> Any:
     """Dual-quaternion skinning of ``feats @ basis`` (block by block for the blocked kernel, else one product
-    for the whole rest mesh); ``translation`` added after."""
+    for the whole rest mesh), moved by ``translation``."""
     batch, num_verts = feats.shape[0], basis.shape[1] // 3
     if kernel == "blocked":
         size = blocked.block_size(batch, num_verts)
@@ -336,10 +336,6 @@ def _dqs_from_basis(
         rest = (
             _blend(feats, basis) if packed is None else gemm.product_with_gradients(feats, *packed).view(batch, 3, -1)
         )
-    verts = dqs.skin(rest, transforms, blocks, pblocks, pairs, tree, feats, basis)
-    if translation is None:
-        return verts
-    if kernel == "blocked":  # our own buffer, no graph: in place (a new mesh-sized array costs page faults)
-        verts += translation[:, None]
-        return verts
-    return verts + translation[:, None]
+    # translated joints: the blend of (T q_j) is T times the blend of q_j, and its rotation part is the same, so
+    # the result is the skinned vertex plus T (as LBS, no pass over the mesh)
+    return dqs.skin(rest, with_translation(transforms, translation), blocks, pblocks, pairs, tree, feats, basis)
