@@ -12,9 +12,10 @@ hemisphere of the vertex's most influential joint ``d``: a sign ``s_dj`` per (bo
 * the pairs ``(d, j)`` whose sign is -1 for some body get ``-2 w_j q_j`` added, from a (P, V) matrix of
   pair weights (pair ``(d, j)`` holds vertex ``v``'s weight of ``j`` when ``v``'s dominant joint is ``d``),
   only in the blocks and body chunks where such a pair occurs (usually none);
-* the blended dual quaternions are normalised and applied on (bodies, 3, vertices) stacks of planes, a
-  dozen whole-stack operations per step (:func:`_apply_into`); for a few bodies in torch, by NumPy on the
-  tensors' memory (:data:`_TORCH_MIN_PLANE`).
+* the blended dual quaternions (a (10, bodies, vertices) stack of planes: the rows list one value for every
+  body, :func:`_rows`) are normalised and applied to the block's rest vertices (computed block by block into
+  reused planes, :func:`_rest_planes`) by 12-20 operations on three planes at a time (:func:`_apply_into`);
+  for a few bodies in torch, by NumPy on the tensors' memory (:data:`_TORCH_MIN_PLANE`).
 
 The result equals the reference's up to the overall sign of a vertex's blend, which the transform does
 not depend on. Under torch's autograd the same arithmetic runs as plain (recorded) operations.
