@@ -227,6 +227,73 @@ def test_pairs_whose_sign_flips_are_corrected(fake_models):
     _check(out.vertices.detach().numpy(), out.joints.detach().numpy(), expected, TOL64)
 
 
+def test_fast_dual_quaternions_equal_the_reference_and_follow_their_parents():
+    from smplcore.engine.kernels import dqs
+    from smplcore.engine.skeleton import KinematicTree
+
+    rotations = Rotation.concatenate(
+        [Rotation.random(40, random_state=4), Rotation.from_rotvec(np.pi * np.eye(3)), Rotation.identity(2)]
+    )
+    rot = rotations.as_matrix()
+    t = np.random.default_rng(4).normal(size=(len(rot), 3))
+    transforms = np.concatenate([rot.reshape(-1, 9), t], axis=1).reshape(5, 9, 12)
+    expected = reference.dual_quaternions(rot, t).reshape(5, 9, 8)
+    for x in (transforms, torch.tensor(transforms)):  # the same branch of Shepperd's method: the same sign
+        np.testing.assert_allclose(np.asarray(dqs.dual_quaternions(x)), expected, atol=1e-12, rtol=0)
+    # in depth order (joints 0, 1, 3, 2, ...): each quaternion in its parent's hemisphere, equal up to sign
+    tree = KinematicTree.from_parents([-1, 0, 1, 0, 2, 4, 4, 6, 3])
+    order = list(tree.order)
+    got = dqs.joint_dual_quaternions(transforms[:, order], tree)
+    parent_rows = [order.index(max(tree.parents[j], 0)) for j in order]
+    assert ((got[..., :4] * got[:, parent_rows, :4]).sum(axis=-1) >= 0).all()
+    sign = np.sign((got[..., :4] * expected[:, order, :4]).sum(axis=-1, keepdims=True))
+    np.testing.assert_allclose(got, sign * expected[:, order], atol=1e-12, rtol=0)
+
+
+@pytest.mark.parametrize("torch_ops", [True, False])  # torch's operations, or NumPy's on the tensors' memory
+@pytest.mark.parametrize("batch", [1, 7])
+def test_torch_inference_with_either_elementwise_backend_equals_the_oracle(fake_models, monkeypatch, torch_ops, batch):
+    from smplcore.engine.kernels import dqs
+
+    monkeypatch.setattr(dqs, "_TORCH_MIN_PLANE", 0 if torch_ops else 1 << 40)
+    for key, options in (MODELS[0], MODELS[2], MODELS[5]):
+        args, kwargs = _args(fake_models, key, options)
+        model = smplcore.create(*args, skinning="dqs", **kwargs)
+        params = _params(model.setup, batch, seed=batch + 2)
+        expected = _expected(model.setup, params, kwargs)
+        with torch.no_grad():
+            out = model(**{k: torch.tensor(v, dtype=torch.float32) for k, v in params.items()})
+        _check(out.vertices.numpy(), out.joints.numpy(), expected, TOL32 * 2)
+
+
+def test_body_chunks_with_flipped_pairs_equal_the_oracle(fake_models, monkeypatch):
+    # a few bodies per step (their rows gathered per chunk), small vertex blocks, and poses whose corrected
+    # pairs occur in some bodies and blocks only; NumPy and torch (both elementwise backends), float64
+    from smplcore.engine import body
+    from smplcore.engine.kernels import blocked, dqs
+
+    monkeypatch.setattr(blocked, "_PLANE_VALUES", 7 * 512)  # blocks of 512 vertices at B = 7
+    monkeypatch.setattr(dqs, "_APPLY_VALUES", (2 * 512, 2 * 512))  # two bodies per step
+    path = fake_models["smplx_neutral_npz"]
+    model = smplcore.BodyModel(path, dtype=np.float64, skinning="dqs", use_pca=False)
+    params = _params(model.setup, 7, seed=12, scale=0.8)
+    arrays = model.arrays
+    _, transforms = body.pose_skeleton(
+        np.zeros((7, arrays.num_coeffs)), model(**params).rotmats, arrays.joint_basis, arrays.tree
+    )
+    flipped = dqs._prepare(transforms, arrays.tree, arrays.dqs_blocks(512)[2])[2]
+    assert flipped is not None and 0 < flipped.any(axis=1).sum() < 7  # some bodies only
+    expected = _expected(model.setup, params, {"use_pca": False})
+    out = model(**params)
+    _check(out.vertices, out.joints, expected, TOL64)
+    torch_model = smplcore.create(path, dtype=torch.float64, skinning="dqs", use_pca=False)
+    for threshold in (0, 1 << 40):
+        monkeypatch.setattr(dqs, "_TORCH_MIN_PLANE", threshold)
+        with torch.no_grad():
+            out = torch_model(**{k: torch.tensor(v) for k, v in params.items()})
+        _check(out.vertices.numpy(), out.joints.numpy(), expected, TOL64)
+
+
 # ------------------------------------------------------------------------------------------------
 # Gradients
 

@@ -320,8 +320,8 @@ def _dqs_from_basis(
     dqs_blocks: Callable[[int], Any],
     tree: KinematicTree,
 ) -> Any:
-    """Dual-quaternion skinning of ``feats @ basis`` (block by block where the blocks hold their packed
-    basis columns, else one product for the whole rest mesh); ``translation`` added after."""
+    """Dual-quaternion skinning of ``feats @ basis`` (block by block for the blocked kernel, else one product
+    for the whole rest mesh), moved by ``translation``."""
     batch, num_verts = feats.shape[0], basis.shape[1] // 3
     if kernel == "blocked":
         size = blocked.block_size(batch, num_verts)
@@ -329,20 +329,13 @@ def _dqs_from_basis(
         size = num_verts if batch <= _GRAD_FEW_BODIES else _GRAD_BLOCK
     blocks, pblocks, pairs = dqs_blocks(size)
     rest = None
-    full_rows = feats.shape[1] == basis.shape[0]
-    if kernel != "blocked" or not full_rows or any(b.packed_blend is None for b in blocks):
+    if kernel != "blocked":
+        full_rows = feats.shape[1] == basis.shape[0]
         trainable = getattr(basis, "requires_grad", False)
         packed = packed_blend() if packed_blend is not None and full_rows and not trainable else None
-        if packed is None:
-            rest = _blend(feats, basis)
-        elif kernel == "blocked":
-            rest = gemm.product(feats, packed[0]).view(batch, 3, -1)
-        else:
-            rest = gemm.product_with_gradients(feats, *packed).view(batch, 3, -1)
-    verts = dqs.skin(rest, transforms, blocks, pblocks, pairs, tree, feats)
-    if translation is None:
-        return verts
-    if kernel == "blocked":  # our own buffer, no graph: in place (a new mesh-sized array costs page faults)
-        verts += translation[:, None]
-        return verts
-    return verts + translation[:, None]
+        rest = (
+            _blend(feats, basis) if packed is None else gemm.product_with_gradients(feats, *packed).view(batch, 3, -1)
+        )
+    # translated joints: the blend of (T q_j) is T times the blend of q_j, and its rotation part is the same, so
+    # the result is the skinned vertex plus T (as LBS, no pass over the mesh)
+    return dqs.skin(rest, with_translation(transforms, translation), blocks, pblocks, pairs, tree, feats, basis)
