@@ -36,6 +36,11 @@ def test_dense_products_match_pose_points(fake_models, model_type):
     expected = np.einsum("bncp,ncb->bp", lin.jacobian, residual)
     scale = np.abs(expected).max()
     np.testing.assert_allclose(dense.gradient(body, arrays, posed, residual), expected, atol=1e-12 * scale)
+    nj3, k = 3 * body.num_joints, body.num_coeffs
+    coeff_jac = lin.jacobian[..., nj3 : nj3 + k]  # (B, n, 3, K)
+    np.testing.assert_allclose(dense.coefficient_jacobian_by_body(arrays, posed), coeff_jac, atol=1e-12)
+    batch_last = dense.coefficient_jacobian(body, pts, arrays, posed)  # (n, 3, K, B)
+    np.testing.assert_allclose(np.moveaxis(batch_last, -1, 0), coeff_jac, atol=1e-12)
     weights = rng.uniform(0, 2, (3, len(ids)))
     jac = lin.jacobian.reshape(3, -1, lin.jacobian.shape[-1]) * np.sqrt(np.repeat(weights, 3, axis=1))[..., None]
     expected = np.swapaxes(jac, 1, 2) @ jac

@@ -182,3 +182,18 @@ def coefficient_jacobian(body: FitBody, pts: Points | None, arrays: DensePoints,
     totals = posed.kin.totals  # (B, J, 3, K)
     dirs += (arrays.weights @ _batch_last(totals.reshape(*totals.shape[:2], -1), arrays.dtype)).reshape(n, 3, k, -1)
     return dirs
+
+
+def coefficient_jacobian_by_body(arrays: DensePoints, posed: Posed) -> np.ndarray:
+    """(B, n, 3, K) :func:`coefficient_jacobian` laid out body first (each body's (3 n, K) block contiguous,
+    for one product per body): the skinning weights times the joints' shape totals (one small product per
+    body), plus the blended rotations times each point's shape directions (one product per point)."""
+    n, k = arrays.count, arrays.num_coeffs
+    totals = posed.kin.totals  # (B, J, 3, K)
+    batch = len(totals)
+    weights = arrays.weights.toarray()  # (n, J)
+    out = np.matmul(weights, totals.reshape(batch, totals.shape[1], 3 * k).astype(arrays.dtype))
+    out = out.reshape(batch, n, 3, k)
+    blend = np.ascontiguousarray(np.moveaxis(posed.blend, -1, 1)).reshape(n, 3 * batch, 3)  # (n, B c, d)
+    out += np.moveaxis((blend @ np.swapaxes(arrays.shape_t, 1, 2)).reshape(n, batch, 3, k), 1, 0)
+    return out

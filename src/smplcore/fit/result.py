@@ -5,7 +5,6 @@ from __future__ import annotations
 import functools
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -15,7 +14,6 @@ from smplcore.fit.body import FitBody
 from smplcore.fit.solver import State
 
 
-@dataclass
 class FitResult:
     """What a fit found.
 
@@ -32,19 +30,79 @@ class FitResult:
     iterations : refinement iterations run.
     camera : a 2D fit's :class:`~smplcore.fit.Camera` (with the estimated focal length when it was
         estimated), or None.
+
+    A fit that never posed the whole mesh (``fit_vertices(..., max_iter=0)`` or ``exact=False``) measures
+    ``vertex_error`` and ``joint_error`` on first access (one forward pass of the model), so that a caller
+    who needs only the parameters does not pay for it.
     """
 
-    params: dict[str, Any]
-    vertex_error: np.ndarray | None = None
-    joint_error: np.ndarray | None = None
-    reprojection_error: np.ndarray | None = None
-    converged: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
-    iterations: int = 0
-    camera: Any = None
+    def __init__(
+        self,
+        params: dict[str, Any],
+        vertex_error: np.ndarray | None = None,
+        joint_error: np.ndarray | None = None,
+        reprojection_error: np.ndarray | None = None,
+        converged: np.ndarray | None = None,
+        iterations: int = 0,
+        camera: Any = None,
+        *,
+        measure: Callable[[], tuple[np.ndarray | None, np.ndarray | None]] | None = None,
+    ) -> None:
+        self.params = params
+        self._vertex_error, self._joint_error = vertex_error, joint_error
+        self._measure = measure
+        self.reprojection_error = reprojection_error
+        self.converged = np.zeros(0, bool) if converged is None else converged
+        self.iterations = iterations
+        self.camera = camera
+
+    def _measured(self) -> None:
+        if self._measure is not None:
+            self._vertex_error, self._joint_error = self._measure()
+            self._measure = None
+
+    @property
+    def vertex_error(self) -> np.ndarray | None:
+        self._measured()
+        return self._vertex_error
+
+    @vertex_error.setter
+    def vertex_error(self, value: np.ndarray | None) -> None:
+        measure = self._measure
+        if measure is not None:  # the joints' error is still to be measured
+            self._measure = lambda: (value, measure()[1])
+        self._vertex_error = value
+
+    @property
+    def joint_error(self) -> np.ndarray | None:
+        self._measured()
+        return self._joint_error
+
+    @joint_error.setter
+    def joint_error(self, value: np.ndarray | None) -> None:
+        measure = self._measure
+        if measure is not None:
+            self._measure = lambda: (measure()[0], value)
+        self._joint_error = value
 
     @property
     def all_converged(self) -> bool:
         return bool(np.all(self.converged))
+
+    def __repr__(self) -> str:
+        def show(value: Any) -> str:
+            return "None" if value is None else f"array(shape={tuple(np.shape(value))})"
+
+        errors = (
+            "vertex_error=<measured on access>, joint_error=<measured on access>"
+            if self._measure is not None
+            else f"vertex_error={show(self._vertex_error)}, joint_error={show(self._joint_error)}"
+        )
+        return (
+            f"FitResult(params={sorted(self.params)}, {errors}, reprojection_error={show(self.reprojection_error)}, "
+            f"converged={int(np.sum(self.converged))}/{len(self.converged)}, iterations={self.iterations}, "
+            f"camera={self.camera!r})"
+        )
 
 
 def single_threaded_blas(fn: Callable) -> Callable:
