@@ -44,3 +44,20 @@ def test_rotation_log_of_a_half_turn_and_of_the_identity():
 
     got = rotation_log(Rotation.from_rotvec(rotvec).as_matrix())
     np.testing.assert_allclose(np.abs(got), np.abs(rotvec), atol=1e-12)
+
+
+def test_rotation_log_inverts_the_exponential_near_zero_and_half_turns():
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(2)
+    axes = rng.normal(size=(300, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    angles = np.concatenate([rng.uniform(0, np.pi, 100), rng.uniform(0, 1e-8, 100), np.pi - rng.uniform(0, 1e-7, 100)])
+    rotvec = axes * angles[:, None]
+    matrices = Rotation.from_rotvec(rotvec).as_matrix()
+    got = rotation_log(matrices.reshape(3, 100, 3, 3)).reshape(-1, 3)
+    np.testing.assert_allclose(Rotation.from_rotvec(got).as_matrix(), matrices, atol=1e-12)
+    assert np.all(np.linalg.norm(got, axis=1) <= np.pi + 1e-12)
+    np.testing.assert_allclose(got[:200], rotvec[:200], atol=1e-12)  # below a half turn: the same vector
+    single = rotation_log(matrices[:50].astype(np.float32))  # float32 in, no warnings, float32 accuracy
+    np.testing.assert_allclose(Rotation.from_rotvec(single).as_matrix(), matrices[:50], atol=2e-6)

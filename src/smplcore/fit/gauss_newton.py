@@ -35,6 +35,9 @@ from smplcore.fit.solver import (
 
 # Bodies per chunk: keeps the (n, 3, 3, chunk) working arrays of a 10k-vertex mesh near 100 MB.
 _CHUNK_POINTS = 1_500_000
+# Below this many points × bodies in all, one thread: a thread's start-up per call costs more than the
+# work it shares (22 joints of a 64-frame sequence ran 30 % slower in two threads, 256 frames 11 %).
+_THREAD_MIN_WORK = 16_384
 # A step moving a parameter by more than this (radians, metres, shape units) makes the Gauss-Newton
 # matrix stale: it is recomputed at the next iteration.
 _FAR = 0.05
@@ -135,13 +138,15 @@ def refine(
 ) -> tuple[State, np.ndarray, np.ndarray, np.ndarray, int]:
     """Minimise ``obj`` from ``state`` (see the module docstring; ``hessian_obj`` is the subset objective,
     default ``obj`` itself). Independent chunks of bodies run in up to ``workers`` threads (None: every
-    core).
+    core; one for small problems, see ``_THREAD_MIN_WORK``).
 
     Returns the state, (B,) costs, (B, n) final point distances, (B,) converged flags (relative cost
     decrease below ``tol``, decrease per unit weight below ``abs_tol`` m², largest step below
     ``step_tol``, or a cost already below ``abs_tol`` per unit weight) and the most iterations run.
     """
     problem = _Problem(body, obj, hessian_obj, dtype)
+    if len(obj.points.ids) * len(state.pose) < _THREAD_MIN_WORK:
+        workers = 1
     if abs_tol is None:  # what the working precision resolves: ~0.1 µm (float64), ~1 µm (float32) RMS
         abs_tol = 1e-14 if np.dtype(dtype) == np.float64 else 1e-12
     if np.dtype(dtype) != np.float64:
