@@ -161,15 +161,20 @@ def initialize(
         anchor_target = np.ascontiguousarray(np.moveaxis(joints, 0, -1))  # (J, 3, B)
         anchor_weight = anchor_weights(body, pts, obj.weights)
     best, best_cost = state.copy(), np.full(len(state.pose), np.inf)
-    for round_ in range(iterations + 1):
-        posed = dense.pose(body, arrays, body.full_pose(state.pose), state.coeffs, state.transl)
-        diff = posed.points - targets
+
+    def keep_best(points: np.ndarray) -> None:
+        """Remember the bodies whose state (posed as ``points``) has the lowest cost yet."""
+        diff = points - targets
         cost = np.einsum("nb,ncb,ncb->b", weights, diff, diff, dtype=np.float64)
         better = np.flatnonzero(cost < best_cost)
         best.put(better, state.take(better))
         best_cost[better] = cost[better]
-        if round_ == iterations:
-            break
+
+    posed = dense.pose(body, arrays, body.full_pose(state.pose), state.coeffs, state.transl)
+    keep_best(posed.points)
+    for round_ in range(iterations):
+        if round_:
+            posed = dense.pose(body, arrays, body.full_pose(state.pose), state.coeffs, state.transl)
         anchors = None
         if anchor_target is not None and anchor_weight is not None:
             posed_joints = np.moveaxis(posed.pos + state.transl[:, None], 0, -1)  # (J, 3, B)
@@ -188,7 +193,8 @@ def initialize(
             parent_world = np.eye(3) if p < 0 else np.swapaxes(current_world[:, p], -1, -2)
             local[:, j] = parent_world @ current_world[:, j]
         state.pose = body.pose_from_full(rotation_log(local))
-        state = shape_and_translation(body, obj, state, arrays=arrays, targets=targets, weights=weights)
+        state, points = _solve_shape_and_translation(body, obj, state, arrays, targets, weights)
+        keep_best(points)
     return best
 
 
@@ -204,18 +210,31 @@ def shape_and_translation(
     """The least-squares shape coefficients and translation for the state's rotations (exact: the posed
     points are affine in them), from one linear solve on those columns (shape prior included).
     ``arrays``, ``targets`` (n, 3, B) and ``weights`` (n, B) can be given in the working precision."""
-    free = np.flatnonzero(obj.free_coeffs)
-    if not (len(free) or obj.fit_transl):
-        return state
-    state = state.copy()
-    batch = len(state.pose)
     if arrays is None:
         arrays = dense.dense_points(body, obj.points)
     if targets is None:
         targets = np.moveaxis(obj.targets, 0, -1).astype(arrays.dtype)
     if weights is None:
         weights = obj.weights.T.astype(arrays.dtype)
+    return _solve_shape_and_translation(body, obj, state, arrays, targets, weights)[0]
+
+
+def _solve_shape_and_translation(
+    body: FitBody,
+    obj: Objective,
+    state: State,
+    arrays: dense.DensePoints,
+    targets: np.ndarray,
+    weights: np.ndarray,
+) -> tuple[State, np.ndarray]:
+    """:func:`shape_and_translation`, and the points (n, 3, B) posed by the new state (from the old ones
+    and the step, exactly: the rotations are unchanged)."""
     posed = dense.pose(body, arrays, body.full_pose(state.pose), state.coeffs, state.transl)
+    free = np.flatnonzero(obj.free_coeffs)
+    if not (len(free) or obj.fit_transl):
+        return state, posed.points
+    state = state.copy()
+    batch = len(state.pose)
     k = len(free)
     size = k + 3 if obj.fit_transl else k
     hess = np.zeros((batch, size, size))
@@ -246,6 +265,11 @@ def shape_and_translation(
         shared[:] = False
     step = _step(hess, grad, np.full(batch, 1e-9), shared)
     state.coeffs[:, free] += step[:, :k]
+    points = posed.points
+    if k:  # the shape's move of every point: one product per body
+        move = (flat @ step[:, :k, None].astype(flat.dtype)).reshape(batch, -1, 3)
+        points = points + np.moveaxis(move, 0, -1)
     if obj.fit_transl:
         state.transl += step[:, k:]
-    return state
+        points = points + step[:, k:].T.astype(points.dtype)
+    return state, points
