@@ -165,7 +165,10 @@ def test_wrong_shapes_name_the_argument(smplx_model):
         smplx_model(body_pose=torch.zeros(2, 63), global_orient=torch.zeros(3, 3))
 
 
-def test_pca_without_components_is_a_clear_error(fake_models):
+def test_pca_without_components_is_a_clear_error(fake_models, monkeypatch):
+    from smplcore.frontend import setup
+
+    monkeypatch.setattr(setup, "_warned", set())  # the warning comes once per process: whatever ran before
     path = fake_models["official_smplh_amass_neutral_npz"]
     with pytest.raises(ModelFileError, match="use_pca=True needs.*pass use_pca=False"):
         smplcore.create(path)

@@ -156,3 +156,39 @@ def test_fake_smplx_fit_writes_an_amass_smplx_layout(tmp_path, fake_models):
     assert motion.model_type == "smplx" and motion.poses.shape == (3, 165)
     with np.load(out) as data:
         assert data["fit_error"].max() < 0.005
+
+
+def test_the_open_model_is_fitted_in_the_gender_asked_for(tmp_path, sequence):
+    """--gender picks the open model's variant too (it has three), as the output's ``gender`` says."""
+    male = smplcore.BodyModel(model_type="open", gender="male", dtype=np.float64)
+    joints = np.asarray(male(**sequence).joints, np.float64)[:, :22]
+    np.save(tmp_path / "j.npy", joints)
+    out = tmp_path / "j_male.npz"
+    assert main(["fit", str(tmp_path / "j.npy"), "-o", str(out), "--gender", "male"]) == 0
+    again = load_motion(out)
+    assert again.gender == "male"
+    params = again.model_params("open", list(male.skeleton_joint_names))
+    fitted = np.asarray(male(**params).joints)[:, :22]
+    assert np.linalg.norm(fitted - joints, axis=-1).mean() < 0.005
+
+
+def test_motion_conversion_reads_the_source_in_the_gender_its_file_names(tmp_path, sequence):
+    """A female motion converted to the neutral model: the source mesh is the female one (the file says so),
+    whatever --gender asks of the target."""
+    from smplcore.motion import Motion, save_motion
+
+    female = smplcore.BodyModel(model_type="open", gender="female", dtype=np.float64)
+    neutral = smplcore.BodyModel(model_type="open", dtype=np.float64)
+    poses = np.concatenate([sequence["global_orient"], sequence["body_pose"]], 1)
+    motion = Motion(poses, sequence["transl"], sequence["betas"][0], 30.0, gender="female", model_type="smpl")
+    path = save_motion(motion, tmp_path / "her.npz")
+    out = tmp_path / "her_neutral.npz"
+    assert main(["fit", str(path), "-o", str(out), "--gender", "neutral"]) == 0
+    again = load_motion(out)
+    assert again.gender == "neutral"
+    names = list(neutral.skeleton_joint_names)
+    source = np.asarray(female(**motion.model_params("open", names)).vertices)
+    same_params = np.asarray(neutral(**motion.model_params("open", names)).vertices)
+    gap = np.linalg.norm(source - same_params, axis=-1).mean()  # the neutral mesh of the same parameters
+    fitted = np.asarray(neutral(**again.model_params("open", names)).vertices)
+    assert np.linalg.norm(fitted - source, axis=-1).mean() < 0.3 * gap  # the female mesh, not the neutral one

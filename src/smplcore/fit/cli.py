@@ -56,7 +56,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", type=Path, required=True, help="output .npz (a folder for a folder of inputs)")
     p.add_argument("--model-type", default="open", help="model to fit: open (default), smpl, smplh, smplx")
     p.add_argument("--model-path", default=None, help="model file or folder (default: the open model)")
-    p.add_argument("--gender", default="neutral")
+    p.add_argument(
+        "--gender", default="neutral",
+        help="the fitted model's gender: neutral (default), male or female (the open model has all three); a "
+        "converted motion's source model takes the gender its file names",
+    )  # fmt: skip
     p.add_argument("--source-model-path", default=None, help="conversion: the source motion's model (default: open)")
     p.add_argument("--convention", default=None, help="keypoint/joint convention (default: the reader's)")
     p.add_argument("--joint-names", default=None, help=".npy joints: the model joint names, comma-separated")

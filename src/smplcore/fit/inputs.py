@@ -57,20 +57,24 @@ def input_kind(path: Path) -> str:
     return kind
 
 
-def build_model(settings: FitSettings, model_type: str | None = None, model_path: str | None = None) -> Any:
-    """The NumPy model the fits use (full-pose hands, flat hand mean: AMASS's layout)."""
+def build_model(
+    settings: FitSettings, model_type: str | None = None, model_path: str | None = None, gender: str | None = None
+) -> Any:
+    """The NumPy model the fits use (full-pose hands, flat hand mean: AMASS's layout), in ``gender``
+    (default ``settings.gender``; the open model has three genders too)."""
     from smplcore import BodyModel
 
     model_type = model_type or settings.model_type
     path = model_path if model_path is not None else settings.model_path
+    gender = gender or settings.gender
     if path is None:
         if model_type not in ("open", None):
             raise ValueError(f"--model-path: a {model_type} model needs its file or folder (only 'open' ships)")
-        return BodyModel(model_type="open", dtype=np.float64)
+        return BodyModel(model_type="open", gender=gender, dtype=np.float64)
     options: dict[str, Any] = {"dtype": np.float64}
     if model_type in ("smplh", "smplx", "mano"):
         options.update(use_pca=False, flat_hand_mean=True)
-    return BodyModel(path, model_type=model_type, gender=settings.gender, **options)
+    return BodyModel(path, model_type=model_type, gender=gender, **options)
 
 
 _PRIORS: dict[tuple[str, str], Any] = {}
@@ -197,7 +201,8 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
 
         motion = load_motion(path)
         source_type = "open" if settings.source_model_path is None else motion.model_type
-        source = build_model(settings, source_type, settings.source_model_path)
+        # the source mesh in the gender its file names (--gender is the target's)
+        source = build_model(settings, source_type, settings.source_model_path, gender=motion.gender)
         src = motion.model_params(source_type, list(source.skeleton_joint_names))
         src["betas"] = src["betas"][:, : source.num_betas]
         r = fit.convert(src, source, model, share_betas=True, **extra)
