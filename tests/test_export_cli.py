@@ -169,3 +169,19 @@ def test_errors_exit_with_status_2(tmp_path, capsys, smplh_motion):
     assert "no such file" in capsys.readouterr().err
     assert main(["export", str(path), "-o", str(tmp_path / "x.obj"), "--frame", "999"]) == 2
     assert "--frame" in capsys.readouterr().err
+
+
+def test_the_open_model_is_exported_in_the_motion_gender(tmp_path):
+    """The open model has three genders: a male motion is exported with the male mesh (and --gender wins)."""
+    import dataclasses
+
+    motion = dataclasses.replace(make_motion("smpl", seconds=0.2, fps=30.0), gender="male")
+    path = save_motion(motion, tmp_path / "him.npz")
+    for gender, flag in (("male", []), ("female", ["--gender", "female"])):
+        out = tmp_path / f"{gender}.obj"
+        assert main(["export", str(path), "-o", str(out), "--frame", "0", *flag]) == 0
+        model = smplcore.BodyModel(model_type="open", gender=gender)
+        params = motion.model_params("open", model.skeleton_joint_names)
+        expected = model(**{k: v[:1] if k != "betas" else v for k, v in params.items()}).vertices[0]
+        written = np.array([line.split()[1:4] for line in out.read_text().splitlines() if line.startswith("v ")], float)
+        assert written.shape == expected.shape and np.abs(written - expected).max() < 1e-4

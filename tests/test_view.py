@@ -120,6 +120,12 @@ def test_body_evaluates_like_the_model_and_frames_batch_like_single_ones(open_mo
     assert batch.shape == (6, *verts.shape)
 
 
+def test_the_open_model_is_built_in_the_gender_asked_for():
+    for gender in ("male", "female"):
+        expected = smplcore.BodyModel(model_type="open", gender=gender).setup.data.v_template
+        np.testing.assert_array_equal(build_model(gender=gender).setup.data.v_template, expected)
+
+
 def test_body_on_smplx_takes_a_smplh_motion_by_joint_name(fake_models):
     model = build_model(fake_models["smplx_neutral_npz"], "smplx", flat_hand_mean=True)
     body = Body(model, Source(label="walk", motion=walk(width=156)))

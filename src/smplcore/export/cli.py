@@ -200,7 +200,7 @@ def _build_model(args: argparse.Namespace, source: Any) -> Any:
         options["dmpl_path"] = args.dmpl
     options["skinning"] = getattr(args, "skinning", "lbs")
     if args.model_path is None and args.model_type in (None, "open"):
-        return BodyModel(model_type="open", **options)
+        return BodyModel(model_type="open", gender=gender, **options)  # it has three genders too
     ext = getattr(args, "ext", None)
     return BodyModel(args.model_path, model_type=args.model_type, gender=gender, ext=ext, **options)
 

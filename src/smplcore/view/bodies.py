@@ -37,7 +37,7 @@ def build_model(
 
     options: dict[str, Any] = {"num_betas": max(int(num_betas), 1), "flat_hand_mean": flat_hand_mean}
     if model_path is None and model_type in (None, "open"):
-        return BodyModel(model_type="open", **options)
+        return BodyModel(model_type="open", gender=gender, **options)  # it has three genders too
     if model_type not in (None, "open", "mano", "flame", "smpl"):
         options["use_pca"] = False
     if model_type in ("smplx", "flame", None):
