@@ -395,11 +395,12 @@ def fit_vertices(
         return dist[:, : len(ids)].mean(1), (dist[:, len(ids) :].mean(1) if n_joints else None)
 
     if dist is None:
+        kept = targets.copy()  # may share the caller's array, which may change before the errors are read
         return FitResult(
             params=state_to_params(body, model, state),
             converged=converged,
             iterations=iterations,
-            measure=lambda: errors(model_distances(model, body, state, point_ids, targets)),
+            measure=lambda: errors(model_distances(model, body, state, point_ids, kept)),
         )
     vertex_error, joint_error = errors(dist)
     return FitResult(
