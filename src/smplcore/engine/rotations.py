@@ -1,8 +1,11 @@
-"""Rotations: axis-angle to matrix (Rodrigues) and the pose-corrective features."""
+"""Rotations: axis-angle to matrix (Rodrigues), axis-angle to and from quaternions, and the pose-corrective
+features."""
 
 from __future__ import annotations
 
 from typing import Any
+
+import numpy as np
 
 from smplcore.engine.backend import eye, namespace
 
@@ -72,3 +75,26 @@ def y_angle(rotmat: Any) -> Any:
 
     xp = namespace(rotmat)
     return atan2(-rotmat[..., 2, 0], xp.sqrt(rotmat[..., 0, 0] ** 2 + rotmat[..., 1, 0] ** 2))
+
+
+def rotvec_to_quat(rotvec: np.ndarray) -> np.ndarray:
+    """(..., 3) axis-angle to (..., 4) unit quaternions (w, x, y, z)."""
+    rotvec = np.asarray(rotvec, dtype=np.float64)
+    angle = np.linalg.norm(rotvec, axis=-1, keepdims=True)
+    half = 0.5 * angle
+    small = angle < 1e-8
+    # sin(θ/2)/θ, with its Taylor series near zero.
+    scale = np.where(small, 0.5 - angle**2 / 48.0, np.sin(half) / np.where(small, 1.0, angle))
+    return np.concatenate([np.cos(half), rotvec * scale], axis=-1)
+
+
+def quat_to_rotvec(quat: np.ndarray) -> np.ndarray:
+    """(..., 4) unit quaternions (w, x, y, z) to (..., 3) axis-angle with angle in [0, π]."""
+    quat = np.asarray(quat, dtype=np.float64)
+    quat = np.where(quat[..., :1] < 0, -quat, quat)
+    w, v = quat[..., :1], quat[..., 1:]
+    s = np.linalg.norm(v, axis=-1, keepdims=True)
+    angle = 2.0 * np.arctan2(s, w)
+    small = s < 1e-8
+    scale = np.where(small, 2.0 / np.where(w == 0, 1.0, w), angle / np.where(small, 1.0, s))
+    return v * scale

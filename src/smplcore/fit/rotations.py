@@ -13,6 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from smplcore.engine.reference import rotation_quaternions
+from smplcore.engine.rotations import quat_to_rotvec
+
 # Frobenius-normalised moment matrices with a determinant below this go to the SVD (a well-spread
 # point set has det ≈ (1/3)^(3/2) ≈ 0.19; a flat or a linear one, 0).
 _WELL_CONDITIONED = 1e-4
@@ -89,33 +92,6 @@ def nearest_rotations(moments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def rotation_log(rotmats: np.ndarray) -> np.ndarray:
-    """(..., 3) axis-angle of (..., 3, 3) rotation matrices (angles in [0, π]).
-
-    Through the unit quaternion, taken from whichever of its four components is largest (Shepperd's
-    method: every branch divides by a number ≥ ½, so it is exact near the identity and near half turns
-    alike), then ``2 atan2(|v|, w) v / |v|``; all matrices at once in a few array operations.
-    """
-    m = rotmats.reshape(-1, 3, 3)
-    r00, r01, r02 = m[:, 0, 0], m[:, 0, 1], m[:, 0, 2]
-    r10, r11, r12 = m[:, 1, 0], m[:, 1, 1], m[:, 1, 2]
-    r20, r21, r22 = m[:, 2, 0], m[:, 2, 1], m[:, 2, 2]
-    trace = r00 + r11 + r22
-    # the four candidates (w, x, y, z), each 4 |q_c| q: the one whose leading term is largest is used
-    candidates = np.stack(
-        [
-            np.stack([1 + trace, r21 - r12, r02 - r20, r10 - r01], -1),
-            np.stack([r21 - r12, 1 + r00 - r11 - r22, r01 + r10, r02 + r20], -1),
-            np.stack([r02 - r20, r01 + r10, 1 - r00 + r11 - r22, r12 + r21], -1),
-            np.stack([r10 - r01, r02 + r20, r12 + r21, 1 - r00 - r11 + r22], -1),
-        ],
-        1,
-    )  # (N, 4 candidates, 4)
-    pick = np.argmax(np.stack([trace, r00, r11, r22], -1), axis=-1)
-    q = candidates[np.arange(len(m)), pick]
-    q *= np.where(q[:, :1] < 0, -1.0, 1.0)  # w ≥ 0: angles in [0, π]
-    v = q[:, 1:]
-    norm_v = np.linalg.norm(v, axis=-1)
-    angle = 2 * np.arctan2(norm_v, q[:, 0])
-    tiny = np.finfo(v.dtype).tiny
-    scale = np.where(norm_v > tiny, angle / np.maximum(norm_v, tiny), 0.0)
-    return (v * scale[:, None]).reshape(*rotmats.shape[:-2], 3)
+    """(..., 3) axis-angle of (..., 3, 3) rotation matrices (angles in [0, π]), through their quaternions
+    (Shepperd's method, exact near the identity and near half turns alike), all matrices at once."""
+    return quat_to_rotvec(rotation_quaternions(rotmats))

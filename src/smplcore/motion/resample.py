@@ -26,6 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from smplcore.engine.rotations import quat_to_rotvec, rotvec_to_quat
+
 METHODS = ("interp", "nearest", "stride")
 
 
@@ -113,29 +115,6 @@ def apply_rotations(poses: np.ndarray, p: ResamplePlan) -> np.ndarray:
     out = out.astype(np.float64, copy=True)
     out[mix] = slerp_rotvec(a, b, p.weight[mix][:, None]).reshape(frames, -1)
     return out
-
-
-def rotvec_to_quat(rotvec: np.ndarray) -> np.ndarray:
-    """(..., 3) axis-angle to (..., 4) unit quaternions (w, x, y, z)."""
-    rotvec = np.asarray(rotvec, dtype=np.float64)
-    angle = np.linalg.norm(rotvec, axis=-1, keepdims=True)
-    half = 0.5 * angle
-    small = angle < 1e-8
-    # sin(θ/2)/θ, with its Taylor series near zero.
-    scale = np.where(small, 0.5 - angle**2 / 48.0, np.sin(half) / np.where(small, 1.0, angle))
-    return np.concatenate([np.cos(half), rotvec * scale], axis=-1)
-
-
-def quat_to_rotvec(quat: np.ndarray) -> np.ndarray:
-    """(..., 4) unit quaternions (w, x, y, z) to (..., 3) axis-angle with angle in [0, π]."""
-    quat = np.asarray(quat, dtype=np.float64)
-    quat = np.where(quat[..., :1] < 0, -quat, quat)
-    w, v = quat[..., :1], quat[..., 1:]
-    s = np.linalg.norm(v, axis=-1, keepdims=True)
-    angle = 2.0 * np.arctan2(s, w)
-    small = s < 1e-8
-    scale = np.where(small, 2.0 / np.where(w == 0, 1.0, w), angle / np.where(small, 1.0, s))
-    return v * scale
 
 
 def slerp_rotvec(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
