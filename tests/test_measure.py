@@ -194,3 +194,16 @@ def test_unknown_names_and_bad_joints_raise_errors_that_name_them():
     v, f = _cylinder(0.1, 1.0)
     with pytest.raises(ValueError, match="joints"):
         measure_mesh(v, f, {"pelvis": np.zeros(3)})
+
+
+@pytest.mark.parametrize("key", ["smpl_neutral_pkl", "smplh_neutral_pkl", "smplx_neutral_npz"])
+def test_every_body_model_of_the_family_is_measured_through_both_front_ends(fake_models, key):
+    torch = pytest.importorskip("torch")
+    names = ["stature", "mass", "waist", "calf", "inseam", "upper_arm"]
+    numpy_model = smplcore.BodyModel(fake_models[key], dtype=np.float64)
+    got = measure(numpy_model, names=names)
+    assert all(np.isfinite(v) and v > 0 for v in got.values())
+    module = smplcore.create(fake_models[key], dtype=torch.float64)
+    from_torch = measure(module, names=names)
+    for k in names:
+        np.testing.assert_allclose(from_torch[k], got[k], rtol=1e-9)

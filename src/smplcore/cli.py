@@ -12,7 +12,13 @@ from smplcore.errors import ModelFileError, ShapeError
 
 # Modules that add their own subcommand: each has ``add_parser(subparsers)`` registering a parser whose
 # ``run`` default is a function ``(args) -> exit status``.
-_SUBCOMMAND_MODULES = ("smplcore.export.cli", "smplcore.fit.cli", "smplcore.motion.cli", "smplcore.view.cli")
+_SUBCOMMAND_MODULES = (
+    "smplcore.export.cli",
+    "smplcore.fit.cli",
+    "smplcore.motion.cli",
+    "smplcore.view.cli",
+    "smplcore.measure.cli",
+)
 
 
 def _version() -> str:
