@@ -176,7 +176,7 @@ def test_gradients_match_finite_differences_through_the_shape_basis():
     beta = np.full(10, 0.3)
     body = rest_body(model, beta)
     lins = measure_body(body, names)
-    dirs = model.setup.shapedirs
+    dirs = model.rig.shapedirs
     for k in range(3):
         step = np.zeros(10)
         step[k] = 1e-4
