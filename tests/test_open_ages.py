@@ -112,3 +112,12 @@ def test_ages_outside_the_axis_and_other_models_are_refused(fake_models):
         smplcore.BodyModel(model_type="open", age=120)
     with pytest.raises(ValueError, match="open model"):
         smplcore.BodyModel(fake_models["smpl_neutral_pkl"], age=7)
+
+
+def test_demo_age_writes_a_child(tmp_path):
+    from smplcore.demo import run_demo
+
+    result = run_demo(tmp_path, poses=["t-pose"], betas=[0.0], render=False, texture=None, age=6)
+    rows = [line.split()[1:4] for line in result.mesh_path.read_text().splitlines() if line.startswith("v ")]
+    stature = np.ptp(np.array(rows, dtype=float)[:, 1])
+    assert abs(stature / 1.156 - 1) < 0.03  # the mean of WHO's 6-year-old boys and girls, 115.6 cm
