@@ -33,9 +33,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--bodies", type=int, default=50)
     parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--num-betas", type=int, default=16, help="shape coefficients of the open model (10..16)")
     args = parser.parse_args()
     print(f"CPU: {_cpu()}")
-    model = smplcore.BodyModel(model_type="open", gender="male", dtype=np.float64)
+    model = smplcore.BodyModel(model_type="open", gender="male", dtype=np.float64, num_betas=args.num_betas)
     measure(model)
     times = []
     for _ in range(args.repeat):
@@ -55,7 +56,7 @@ def main() -> None:
     dt = time.perf_counter() - t
     ok = (np.abs(fit.residual["stature"]) <= 0.005) & (np.abs(fit.residual["waist"]) <= 0.01)
     print(
-        f"fit_shape stature+mass+waist, {args.bodies} bodies: {dt / args.bodies * 1e3:.0f} ms per body, "
+        f"fit_shape stature+mass+waist, {args.bodies} bodies, {args.num_betas} betas: {dt / args.bodies * 1e3:.0f} ms per body, "
         f"{np.mean(fit.iterations):.1f} iterations; reached {ok.mean() * 100:.0f} % "
         f"(|mass residual| median {np.median(np.abs(fit.residual['mass'])):.2f} kg, "
         f"max {np.max(np.abs(fit.residual['mass'])):.2f} kg)"

