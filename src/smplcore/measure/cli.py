@@ -51,6 +51,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--model-path", default=None, help="model file or folder (default: the open model)")
     p.add_argument("--model-type", default=None, help="smpl, smplh, smplx or open")
     p.add_argument("--gender", default=None, help="model gender (default: the input's, else neutral)")
+    p.add_argument("--age", type=float, default=None, help="the open model at this age in years, 1-90")
     p.add_argument("--betas", type=_floats, default=None, help="shape coefficients, e.g. '1.5,-0.5'")
     p.add_argument("--names", default=None, help="measurements to print, comma separated (default: all)")
     p.add_argument("--density", type=float, default=None, help="body density in kg/m^3 for the mass")
@@ -80,7 +81,10 @@ def _model(args: argparse.Namespace, gender: str | None) -> Any:
     from smplcore import BodyModel
 
     model_type = args.model_type or (None if args.model_path else "open")
-    return BodyModel(args.model_path, model_type, gender=(args.gender or gender or "neutral"), dtype=np.float64)
+    options = {} if args.age is None else {"age": args.age}
+    return BodyModel(
+        args.model_path, model_type, gender=(args.gender or gender or "neutral"), dtype=np.float64, **options
+    )
 
 
 def _table(values: dict[str, float], title: str) -> str:
@@ -149,7 +153,11 @@ def run_measure(args: argparse.Namespace) -> int:
     else:
         values = measure(model, betas, names=names, density=density)
         shape = "0" if betas is None else ", ".join(f"{b:g}" for b in betas)
-        source = str(args.input) if args.input is not None else f"{getattr(model, 'model_type', 'model')} betas {shape}"
+        source = (
+            str(args.input)
+            if args.input is not None
+            else f"{model.model_type}{'' if args.age is None else f' age {args.age:g}'} betas {shape}"
+        )
     if args.json:
         print(json.dumps({"source": source, "units": {k: UNITS[k] for k in values}, "values": values}, indent=2))
     else:
