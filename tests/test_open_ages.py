@@ -130,3 +130,16 @@ def test_create_takes_the_age_too():
     got = module(betas=torch.zeros(1, 10)).vertices[0].detach().numpy()
     np.testing.assert_allclose(got, numpy_model(betas=np.zeros((1, 10))).vertices[0], atol=1e-5)
     np.testing.assert_allclose(module.rig.template, numpy_model.rig.template)
+
+
+def test_a_childs_fit_starts_from_the_age_of_its_stature():
+    from smplcore.measure import age_for_stature, fit_shape
+
+    age = age_for_stature(1.20, "female")
+    assert 6.5 < age < 7.5  # WHO: girls' median is 115.1 cm at 6 and 120.8 cm at 7
+    kid = smplcore.BodyModel(model_type="open", gender="female", age=age)
+    np.testing.assert_allclose(measure(kid, names=["stature"])["stature"], 1.20, atol=0.003)
+    fit = fit_shape(kid, height=1.22, mass=24.0)
+    assert abs(fit.residual["stature"]) < 0.005 and abs(fit.residual["mass"]) < 0.5
+    with pytest.raises(ValueError, match="gender"):
+        age_for_stature(1.2, "child")

@@ -16,7 +16,7 @@ import numpy as np
 from smplcore.errors import ModelFileError
 from smplcore.io.model_data import ModelData
 
-__all__ = ["AGE_RANGE", "open_ages_path", "age_offsets", "at_age"]
+__all__ = ["AGE_RANGE", "open_ages_path", "age_offsets", "at_age", "age_for_stature"]
 
 DATA_DIR = Path(__file__).resolve().parents[1] / "data"
 #: Ages (years) the age axis covers.
@@ -65,3 +65,19 @@ def at_age(data: ModelData, years: float, shapedirs: np.ndarray) -> tuple[ModelD
     template = np.asarray(data.v_template, dtype=np.float64)
     adult = float(np.ptp(template[:, 1]))
     return data.replace(v_template=template + offset), np.asarray(shapedirs) * (stature / adult)
+
+
+def age_for_stature(stature: float, gender: str = "neutral") -> float:
+    """The age (years, 1-19) at which the open model's mean body of ``gender`` has ``stature`` (m): the
+    inverse of its growth curve (WHO medians), for starting a child's fit. Adult statures give 19."""
+    g = str(gender).lower()
+    if g not in ("neutral", "male", "female"):
+        raise ValueError(f"gender: expected 'neutral', 'male' or 'female', got {gender!r}")
+    s = float(stature)
+    if not np.isfinite(s) or s <= 0:
+        raise ValueError(f"stature: expected a positive length in metres, got {stature}")
+    t = _tables()
+    ages = t["ages"].astype(np.float64)
+    grow = ages <= 19
+    curve = np.maximum.accumulate(t[f"stature_{g}"].astype(np.float64)[grow])
+    return float(np.interp(s, curve, ages[grow]))

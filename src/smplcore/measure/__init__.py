@@ -10,6 +10,7 @@ See docs/measure.md for the definitions (ISO 8559-1, ISO 7250-1, ANSUR II), the 
 and cutting planes, and :func:`fit_shape`.
 """
 
+from smplcore.io import age_for_stature
 from smplcore.measure.api import measure, measure_mesh
 from smplcore.measure.definitions import DEFAULT_DENSITY, MEASUREMENTS, UNITS
 from smplcore.measure.fit import TOLERANCES, ShapeFit, fit_shape
@@ -23,4 +24,5 @@ __all__ = [
     "UNITS",
     "DEFAULT_DENSITY",
     "TOLERANCES",
+    "age_for_stature",
 ]
