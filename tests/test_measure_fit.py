@@ -65,3 +65,5 @@ def test_bad_targets_raise_errors_that_name_them(male):
         fit_shape(male, height=[1.7, 1.8], waist=[0.8, 0.9, 1.0])
     with pytest.raises(ValueError, match="mass"):
         fit_shape(male, mass=float("nan"))
+    with pytest.raises(ValueError, match="not both"):
+        fit_shape(male, height=1.7, stature=1.8)

@@ -122,6 +122,8 @@ def fit_shape(
     :class:`ShapeFit` with ``betas`` (num_betas,) or (B, num_betas) and the residual per measurement.
     """
     rig = _rig_of(model)
+    if "height" in targets and "stature" in targets:
+        raise ValueError("fit_shape: give height or stature (the same measurement), not both")
     goals = {_ALIASES.get(k, k): v for k, v in targets.items() if v is not None}
     unknown = sorted(set(goals) - set(MEASUREMENTS))
     if unknown:
