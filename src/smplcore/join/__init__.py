@@ -5,9 +5,16 @@ left ``shapedirs``) and a worked HaMeR / WiLoR example.
 """
 
 from smplcore.join.hands import HandResidual, JoinResult, join_hands, split_hands
+from smplcore.join.heads import ExpressionMap, FlameHead, HeadResidual, expression_map, join_head, split_head
 from smplcore.join.mano import ManoHand, fixed_left_shapedirs, left_shapedirs_flipped
 
 __all__ = [
+    "ExpressionMap",
+    "FlameHead",
+    "HeadResidual",
+    "expression_map",
+    "join_head",
+    "split_head",
     "HandResidual",
     "JoinResult",
     "ManoHand",

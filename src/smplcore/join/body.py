@@ -122,3 +122,19 @@ def set_joint(rig: RigFacts, params: dict[str, Any], joint: int, rotation: np.nd
             params[block.name] = aa
             return
     raise ValueError(f"joint {joint} is in no rotation block of the {rig.model_type} model")
+
+
+def copy_params(body_params: dict[str, Any], batch_of: tuple[int, ...] = ()) -> tuple[dict[str, Any], int]:
+    """A float64 copy of ``body_params`` with every rotation block (not the hands) as (B, 3 n) axis-angle rows,
+    and the batch size (broadcast with ``batch_of``)."""
+    if not isinstance(body_params, dict):
+        raise TypeError(f"body_params: expected a dict of the body model's keywords, got {type(body_params).__name__}")
+    params = {k: np.array(v, dtype=np.float64) for k, v in body_params.items() if v is not None}
+    return params, params_batch(params, *batch_of)
+
+
+def rotations_as_axis_angle(rig: RigFacts, params: dict[str, Any], batch: int) -> None:
+    """Rewrite the non-hand rotation blocks of ``params`` (and ``body_pose``) as (B, 3 n) axis-angle rows."""
+    for block in rig.pose_blocks:
+        if block.name not in HAND_BLOCKS.values() and (block.name in params or block.name == "body_pose"):
+            params[block.name] = block_axis_angle(rig, params, block.name, batch)

@@ -17,11 +17,12 @@ from smplcore.join._rig import RigFacts, _rig_of
 from smplcore.join.body import (
     HAND_BLOCKS,
     block_axis_angle,
+    copy_params,
     hand_block_value,
     joint_positions,
     local_rotations,
-    params_batch,
     rest_joints,
+    rotations_as_axis_angle,
     set_joint,
     world_rotations,
 )
@@ -68,7 +69,7 @@ class JoinResult:
     """``params``: the body parameters with the hands joined (float64 NumPy arrays, the body model's keywords);
     ``residuals``: a :class:`HandResidual` (or :class:`smplcore.join.HeadResidual`) per joined part."""
 
-    params: dict[str, np.ndarray]
+    params: dict[str, Any]
     residuals: dict[str, Any] = field(default_factory=dict)
 
 
@@ -77,12 +78,6 @@ def _body_rig(body_model: Any) -> RigFacts:
     if rig.model_type not in _BODIES:
         raise ValueError(f"body_model: expected an SMPL-X or SMPL+H model (with hands), got a {rig.model_type} model")
     return rig
-
-
-def _copy_params(body_params: dict[str, Any]) -> dict[str, Any]:
-    if not isinstance(body_params, dict):
-        raise TypeError(f"body_params: expected a dict of the body model's keywords, got {type(body_params).__name__}")
-    return {k: None if v is None else np.array(v, dtype=np.float64) for k, v in body_params.items()}
 
 
 def join_hands(
@@ -119,17 +114,14 @@ def join_hands(
         raise ValueError(f"forearm_twist: expected a share in [0, 1], got {forearm_twist!r}")
     if not forearm_twist_limit >= 0:
         raise ValueError(f"forearm_twist_limit: expected a non-negative angle, got {forearm_twist_limit!r}")
-    params = _copy_params(body_params)
     hands: dict[str, HandRotations] = {}
     for side, given in (("left", left), ("right", right)):
         if given is not None:
             hands[side] = hand_rotations(given, side, label=side)
     if not hands:
         raise ValueError("left, right: give at least one hand to join")
-    batch = params_batch(params, *(h.orientation.shape[0] for h in hands.values()))
-    for block in rig.pose_blocks:  # every rotation block as axis-angle rows of the batch
-        if block.name not in HAND_BLOCKS.values() and (block.name in params or block.name == "body_pose"):
-            params[block.name] = block_axis_angle(rig, params, block.name, batch)
+    params, batch = copy_params(body_params, tuple(h.orientation.shape[0] for h in hands.values()))
+    rotations_as_axis_angle(rig, params, batch)
     world = world_rotations(rig, local_rotations(rig, params, batch))
     rest = rest_joints(rig, params.get("betas"), batch)
     twists = {}
@@ -222,8 +214,7 @@ def split_hands(
     for key in hand_models:
         if key not in SIDES:
             raise ValueError(f"hand_models: keys are 'left' and 'right', got {key!r}")
-    params = _copy_params(body_params)
-    batch = params_batch(params)
+    params, batch = copy_params(body_params)
     world = world_rotations(rig, local_rotations(rig, params, batch))
     cam = camera_rotation_of(camera_rotation)
     positions = joint_positions(rig, params, world) if hand_models else None
