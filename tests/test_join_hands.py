@@ -15,7 +15,6 @@ import pytest
 import smplcore
 from smplcore.errors import ShapeError
 from smplcore.join import ManoHand, fixed_left_shapedirs, join_hands, left_shapedirs_flipped, split_hands
-from smplcore.join._rig import _rig_of
 from smplcore.join.rotations import angle_between, mirror_matrix, to_axis_angle, to_matrix
 
 ROT_TOL = 1e-5  # rad
@@ -71,7 +70,7 @@ def _posed_params(body, rng, batch=2, hand_scale=0.6, about_mean=True):
     """Random body parameters whose hand poses lie in the first 6 PCA directions of the file about the mean
     hand (``about_mean``) or about the flat hand, written in ``body``'s convention; plus the absolute finger
     axis-angle per side. (A PCA space about the mean holds the first, one about the flat hand the second.)"""
-    rig = _rig_of(body)
+    rig = body.rig
     spaces = _SPACES[id(body)]
     params = {
         "global_orient": rng.normal(0, 0.6, (batch, 3)),
@@ -105,7 +104,7 @@ def body_of(bodies, data):
             pca = smplcore.BodyModel(
                 data=data[kind], dtype=np.float64, use_pca=True, num_pca_comps=12, flat_hand_mean=False
             )
-            rig = _rig_of(pca)
+            rig = pca.rig
             _SPACES[id(body)] = {
                 s: (rig.hand_components[f"{s}_hand_pose"], rig.hand_means[f"{s}_hand_pose"]) for s in ("left", "right")
             }
@@ -125,7 +124,7 @@ def _wrist_and_finger_error(body, a, b):
     """Largest rotation angle between two parameter sets over both wrists' world rotations and all finger joints."""
     from smplcore.join.body import local_rotations, world_rotations
 
-    rig = _rig_of(body)
+    rig = body.rig
     batch = a["body_pose"].shape[0]
     la, lb = local_rotations(rig, a, batch), local_rotations(rig, b, batch)
     wa, wb = world_rotations(rig, la), world_rotations(rig, lb)
@@ -143,7 +142,7 @@ def _wrist_and_finger_error(body, a, b):
 def _hand_vertex_error(body, a, b, threshold=0.5):
     """Largest distance between the body's hand vertices (wrist and finger weights summing over ``threshold``)
     for two parameter sets."""
-    rig = _rig_of(body)
+    rig = body.rig
     hand_joints = [
         i
         for i, n in enumerate(rig.joint_names)
@@ -233,7 +232,7 @@ def test_the_hand_parameters_are_what_mano_takes(body_of, manos):
     hands = split_hands(body, params, hand_models={"left": manos("left", True, False), "right": manos("right")})
     out = body(**params)
     names = body.skeleton_joint_names
-    rig = _rig_of(body)
+    rig = body.rig
     from smplcore.join.body import local_rotations, world_rotations
 
     world = world_rotations(rig, local_rotations(rig, params, 2))
@@ -260,7 +259,7 @@ def test_a_hamer_like_left_hand_is_the_mirror_of_the_body_hand(body_of, manos):
     hamer_like = ManoHand(global_orient=go, hand_pose=hp, mirrored=True, camera_rotation=CAMERA)
     result = join_hands(body, _without_hands(params), left=hamer_like, right=hands["right"])
     assert _wrist_and_finger_error(body, params, result.params) <= ROT_TOL
-    rig = _rig_of(body)
+    rig = body.rig
     from smplcore.join.body import local_rotations, world_rotations
 
     world = world_rotations(rig, local_rotations(rig, params, 1))
@@ -291,7 +290,7 @@ def test_perturbed_hands_give_bounded_residuals(body_of, manos):
     assert np.all(r.finger_angle > 0)
     assert r.wrist_angle.max() <= 1e-9  # any orientation is reachable through the wrist
     np.testing.assert_allclose(r.wrist_offset, np.linalg.norm(shift, axis=1), rtol=1e-9)
-    rig = _rig_of(body)
+    rig = body.rig
     from smplcore.join.body import local_rotations, world_rotations
 
     wrist = rig.joint_names.index("left_wrist")
@@ -304,7 +303,7 @@ def test_perturbed_hands_give_bounded_residuals(body_of, manos):
 def _forearm_radius(body, params, side):
     """Posed over rest mean distance from the elbow-wrist axis of the vertices where the elbow's and the
     wrist's weights meet (wrist weight 0.3-0.7), as the DQS work measures the candy wrapper."""
-    rig = _rig_of(body)
+    rig = body.rig
     elbow, wrist = (rig.joint_names.index(f"{side}_{n}") for n in ("elbow", "wrist"))
     out = body(**params)
     rest, joints = body.rest_pose(betas=params["betas"][0])
@@ -323,7 +322,7 @@ def _forearm_radius(body, params, side):
 
 def test_the_forearm_adjustment_shares_the_twist_without_moving_the_hand(body_of, data):
     body = body_of("smplx", False, False)
-    rig = _rig_of(body)
+    rig = body.rig
     rng = np.random.default_rng(6)
     params, _ = _posed_params(body, rng, batch=1)
     params["betas"][:] = 0.0
@@ -337,7 +336,7 @@ def test_the_forearm_adjustment_shares_the_twist_without_moving_the_hand(body_of
     # the hand turned 150 degrees about the forearm
     hand_world = world[:, elbow] @ to_matrix(np.radians(150.0) * axis[None])
     hand = ManoHand(
-        global_orient=hand_world, hand_pose=params["left_hand_pose"] + _rig_of(body).hand_means["left_hand_pose"]
+        global_orient=hand_world, hand_pose=params["left_hand_pose"] + body.rig.hand_means["left_hand_pose"]
     )
     plain = join_hands(body, params, left=hand)
     shared = join_hands(body, params, left=hand, forearm_twist=0.5)
@@ -366,16 +365,16 @@ def test_left_mano_shapedirs_defect_is_detected_and_fixed(fake_models, manos):
     left, right = manos("left"), manos("right")
     assert left_shapedirs_flipped(left, right)
     fixed = fixed_left_shapedirs(left)
-    r = _rig_of(right).shapedirs
+    r = right.rig.shapedirs
     np.testing.assert_allclose(fixed, r * np.array([-1.0, 1.0, 1.0])[None, :, None], atol=1e-12)  # a true mirror
     # with the fix, the same betas put the two wrists at mirrored places
     from smplcore.join.mano import mano_wrist
 
     betas = np.random.default_rng(7).normal(0, 2, (3, 10))
-    wl = mano_wrist(_rig_of(left), betas, np.zeros(3))
-    wr = mano_wrist(_rig_of(right), betas, np.zeros(3))
+    wl = mano_wrist(left.rig, betas, np.zeros(3))
+    wr = mano_wrist(right.rig, betas, np.zeros(3))
     np.testing.assert_allclose(wl, wr * np.array([-1.0, 1.0, 1.0]), atol=1e-12)
-    unfixed = mano_wrist(_rig_of(left), betas, np.zeros(3), fix_left_shapedirs=False)
+    unfixed = mano_wrist(left.rig, betas, np.zeros(3), fix_left_shapedirs=False)
     assert np.abs(unfixed - wr * np.array([-1.0, 1.0, 1.0])).max() > 1e-5
 
 

@@ -13,7 +13,6 @@ import pytest
 import smplcore
 from smplcore.errors import ShapeError
 from smplcore.join import FlameHead, expression_map, join_head, split_head
-from smplcore.join._rig import _rig_of
 from smplcore.join.body import local_rotations, world_rotations
 from smplcore.join.rotations import angle_between, to_axis_angle, to_matrix
 
@@ -67,7 +66,7 @@ def _headless(params):
 
 
 def _head_error(body, a, b):
-    rig = _rig_of(body)
+    rig = body.rig
     la, lb = local_rotations(rig, a, 2), local_rotations(rig, b, 2)
     wa, wb = world_rotations(rig, la), world_rotations(rig, lb)
     joints = [rig.joint_names.index(n) for n in ("head", "jaw", "left_eye_smplhf", "right_eye_smplhf")]
@@ -114,7 +113,7 @@ def test_an_unrelated_flame_expression_gives_a_bounded_fit_residual(models):
     result = join_head(body, _headless(_body_params(rng)), FlameHead(expression=expr), flame, vertex_ids=ids)
     r = result.residuals["head"]
     assert not r.direct
-    target = np.einsum("vck,bk->bvc", _rig_of(flame).exprdirs, expr)
+    target = np.einsum("vck,bk->bvc", flame.rig.exprdirs, expr)
     neutral = np.sqrt(np.mean(np.sum(target**2, axis=-1), axis=-1))
     assert np.all(r.expression_rms > 0) and np.all(r.expression_rms <= neutral)
     # perturbing a matching FLAME's expression by delta moves the residual by at most |A delta|
@@ -127,7 +126,7 @@ def test_flame_orientation_in_the_camera_frame_sets_the_head_joint(models):
     body = models["body"]
     rng = np.random.default_rng(14)
     params = _body_params(rng, batch=1)
-    rig = _rig_of(body)
+    rig = body.rig
     head_world = to_matrix(rng.normal(0, 0.7, (1, 3)))
     flame = FlameHead(global_orient=to_axis_angle(CAMERA @ head_world), camera_rotation=CAMERA)
     result = join_head(body, params, flame, expression="direct")

@@ -253,9 +253,9 @@ def split_hands(
             continue
         mano = _rig_of(model)
         expected = "right" if mirrored else side
-        if (mano.model_type, mano.gender) != ("mano", expected):
+        if (mano.model_type, mano.side) != ("mano", expected):
             raise ValueError(
-                f"hand_models[{side!r}]: expected a {expected} MANO model, got {mano.model_type} ({mano.gender})"
+                f"hand_models[{side!r}]: expected a {expected} MANO model, got {mano.model_type} ({mano.side})"
             )
         relative = fingers - mano.hand_means["hand_pose"]
         comps = mano.hand_components.get("hand_pose")

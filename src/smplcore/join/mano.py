@@ -93,9 +93,9 @@ def _convention(hand: ManoHand, side: str, label: str) -> tuple[np.ndarray | Non
     if rig.model_type != "mano":
         raise ValueError(f"{label}.model: expected a MANO model, got a {rig.model_type} model")
     expected = _other(side) if hand.mirrored else side
-    if rig.gender != expected:
+    if rig.side != expected:
         why = " (mirrored: the other side's model)" if hand.mirrored else ""
-        raise ValueError(f"{label}.model: expected a {expected} MANO model{why}, got a {rig.gender} one")
+        raise ValueError(f"{label}.model: expected a {expected} MANO model{why}, got a {rig.side} one")
     return rig.hand_components.get("hand_pose"), rig.hand_means["hand_pose"], rig
 
 
@@ -187,7 +187,7 @@ def mano_wrist(rig: RigFacts, betas: Any, transl: Any, *, fix_left_shapedirs: bo
     if betas is not None:
         b = np.atleast_2d(np.asarray(betas, dtype=np.float64))[:, : rig.joint_shapedirs.shape[-1]]
         dirs = rig.joint_shapedirs[0, :, : b.shape[1]]
-        if fix_left_shapedirs and rig.gender == "left":
+        if fix_left_shapedirs and rig.side == "left":
             dirs = dirs * np.array([-1.0, 1.0, 1.0])[:, None]
         offset = b @ dirs.T
     return joint + offset + np.atleast_2d(np.asarray(transl, dtype=np.float64))
@@ -203,7 +203,7 @@ def left_shapedirs_flipped(left_model: Any, right_model: Any) -> bool:
     model's (closer to them than to their negation).
     """
     left, right = _rig_of(left_model), _rig_of(right_model)
-    if (left.model_type, left.gender, right.model_type, right.gender) != ("mano", "left", "mano", "right"):
+    if (left.model_type, left.side, right.model_type, right.side) != ("mano", "left", "mano", "right"):
         raise ValueError("left_model, right_model: expected a left and a right MANO model")
     k = min(left.shapedirs.shape[-1], right.shapedirs.shape[-1])
     lx, rx = left.shapedirs[:, 0, :k], right.shapedirs[:, 0, :k]
@@ -213,6 +213,6 @@ def left_shapedirs_flipped(left_model: Any, right_model: Any) -> bool:
 def fixed_left_shapedirs(left_model: Any) -> np.ndarray:
     """(V, 3, S) the left MANO model's shape basis with its x rows negated (the MANO_LEFT.pkl fix)."""
     rig = _rig_of(left_model)
-    if (rig.model_type, rig.gender) != ("mano", "left"):
-        raise ValueError(f"left_model: expected a left MANO model, got {rig.model_type} ({rig.gender})")
+    if (rig.model_type, rig.side) != ("mano", "left"):
+        raise ValueError(f"left_model: expected a left MANO model, got {rig.model_type} ({rig.side})")
     return rig.shapedirs * np.array([-1.0, 1.0, 1.0])[None, :, None]
