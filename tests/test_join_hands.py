@@ -425,3 +425,44 @@ def test_torch_models_join_like_numpy_ones(fake_models, body_of):
     b = join_hands(model, _without_hands(params), **hands).params
     for key in a:
         np.testing.assert_allclose(a[key], b[key], atol=1e-12)
+
+
+def test_body_rotations_as_matrices_join_like_axis_angle(body_of):
+    """Body estimators (HMR2, 4DHumans) give rotation matrices: the same body as matrices joins the same."""
+    body = body_of("smplx", False, False)
+    params, _ = _posed_params(body, np.random.default_rng(15))
+    hands = split_hands(body, params)
+    as_matrices = dict(_without_hands(params))
+    as_matrices["global_orient"] = to_matrix(params["global_orient"])[:, None]
+    as_matrices["body_pose"] = to_matrix(_without_hands(params)["body_pose"].reshape(2, 21, 3))
+    a = join_hands(body, _without_hands(params), **hands).params
+    b = join_hands(body, as_matrices, **hands).params
+    for key in ("global_orient", "body_pose", "left_hand_pose", "right_hand_pose"):
+        np.testing.assert_allclose(b[key], a[key], atol=1e-12)
+
+
+def test_the_forearm_adjustment_keeps_the_hand_in_any_arm_pose(body_of):
+    """With a bent, twisted elbow and shaped body, the shared twist still leaves every hand joint in place and
+    the hand's orientation exact; the wrist's twist is halved (within the limit)."""
+    body = body_of("smplx", False, False)
+    rig = body.rig
+    params, _ = _posed_params(body, np.random.default_rng(16), batch=3)
+    hands = split_hands(body, params)
+    plain = join_hands(body, params, **hands)
+    shared = join_hands(body, params, **hands, forearm_twist=0.5, forearm_twist_limit=np.pi)
+    for side in ("left", "right"):
+        r = shared.residuals[side]
+        np.testing.assert_allclose(r.forearm_twist_after, r.forearm_twist_before / 2, atol=1e-9)
+        assert r.max_angle <= 1e-9
+    hand_joints = [i for i, n in enumerate(rig.joint_names) if n.endswith("wrist") or n[-1] in "123"]
+    np.testing.assert_allclose(
+        body(**shared.params).joints[:, hand_joints], body(**plain.params).joints[:, hand_joints], atol=1e-9
+    )
+
+
+def test_split_hands_relative_to_a_mean_needs_a_body_with_one(body_of):
+    body = body_of("smplx", False, True)
+    with pytest.raises(ValueError, match="flat_hand_mean=False: the body model has no mean hand pose"):
+        split_hands(body, {"body_pose": np.zeros((1, 63))}, flat_hand_mean=False)
+    with pytest.raises(ValueError, match=r"hand_models: keys are 'left' and 'right'"):
+        split_hands(body, {"body_pose": np.zeros((1, 63))}, hand_models={"both": None})
