@@ -415,14 +415,22 @@ def test_join_hands_refuses_wrong_inputs(body_of, manos, fake_models):
         )
 
 
-def test_torch_models_join_like_numpy_ones(fake_models, body_of):
+def test_torch_models_and_tensors_join_like_numpy(fake_models, body_of):
+    """A torch model reads the same facts; torch tensors (with grad, as estimators output them) are read as
+    NumPy values."""
     torch = pytest.importorskip("torch")
     model = smplcore.create(fake_models["smplx_neutral_npz"], model_type="smplx", use_pca=False, dtype=torch.float64)
     body = body_of("smplx", False, False)
     params, _ = _posed_params(body, np.random.default_rng(8))
     hands = split_hands(body, params)
     a = join_hands(body, _without_hands(params), **hands).params
-    b = join_hands(model, _without_hands(params), **hands).params
+    tensors = {k: torch.tensor(v, requires_grad=True) for k, v in _without_hands(params).items()}
+    right = hands["right"]
+    right_t = ManoHand(
+        global_orient=torch.tensor(to_matrix(right.global_orient)[:, None], requires_grad=True),
+        hand_pose=torch.tensor(right.hand_pose),
+    )
+    b = join_hands(model, tensors, left=hands["left"], right=right_t).params
     for key in a:
         np.testing.assert_allclose(a[key], b[key], atol=1e-12)
 

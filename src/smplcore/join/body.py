@@ -9,7 +9,7 @@ import numpy as np
 
 from smplcore.errors import ShapeError
 from smplcore.join._rig import RigFacts
-from smplcore.join.rotations import as_rotations, to_axis_angle, to_matrix
+from smplcore.join.rotations import as_rotations, numpy_of, to_axis_angle, to_matrix
 
 #: Pose blocks given as rotations of their joints (axis-angle, or matrices for the non-hand blocks).
 HAND_BLOCKS = {"left": "left_hand_pose", "right": "right_hand_pose"}
@@ -129,7 +129,7 @@ def copy_params(body_params: dict[str, Any], batch_of: tuple[int, ...] = ()) -> 
     and the batch size (broadcast with ``batch_of``)."""
     if not isinstance(body_params, dict):
         raise TypeError(f"body_params: expected a dict of the body model's keywords, got {type(body_params).__name__}")
-    params = {k: np.array(v, dtype=np.float64) for k, v in body_params.items() if v is not None}
+    params = {k: np.array(numpy_of(v)) for k, v in body_params.items() if v is not None}
     return params, params_batch(params, *batch_of)
 
 

@@ -26,8 +26,16 @@ from smplcore.join.body import (
     set_joint,
     world_rotations,
 )
-from smplcore.join.mano import SIDES, HandRotations, ManoHand, camera_rotation, hand_rotations
-from smplcore.join.rotations import MIRROR, angle_between, mirror_axis_angle, mirror_matrix, to_axis_angle, to_matrix
+from smplcore.join.mano import SIDES, HandRotations, ManoHand, check_camera_rotation, hand_rotations
+from smplcore.join.rotations import (
+    MIRROR,
+    angle_between,
+    mirror_axis_angle,
+    mirror_matrix,
+    numpy_of,
+    to_axis_angle,
+    to_matrix,
+)
 from smplcore.join.twist import forearm_axis, redistribute_twist
 
 _BODIES = ("smplx", "smplh")
@@ -216,7 +224,7 @@ def split_hands(
             raise ValueError(f"hand_models: keys are 'left' and 'right', got {key!r}")
     params, batch = copy_params(body_params)
     world = world_rotations(rig, local_rotations(rig, params, batch))
-    cam = camera_rotation_of(camera_rotation)
+    cam = check_camera_rotation(camera_rotation, "split_hands")
     positions = joint_positions(rig, params, world) if hand_models else None
     out = {}
     for side in SIDES:
@@ -227,7 +235,7 @@ def split_hands(
         if cam is not None:
             orient = cam @ orient
             if pos is not None:
-                t = np.zeros(3) if camera_translation is None else np.asarray(camera_translation, dtype=np.float64)
+                t = np.zeros(3) if camera_translation is None else numpy_of(camera_translation)
                 pos = np.einsum("...ij,...j->...i", cam, pos) + t
         mirrored = side == "left" and mirror_left
         if mirrored:
@@ -275,7 +283,3 @@ def split_hands(
             hand.betas = np.zeros((batch, mano.num_betas))
         out[side] = hand
     return out
-
-
-def camera_rotation_of(value: Any) -> np.ndarray | None:
-    return camera_rotation(value, "split_hands")

@@ -10,7 +10,7 @@ the linear least-squares map between them (:class:`ExpressionMap`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
@@ -19,8 +19,8 @@ from smplcore.errors import ShapeError
 from smplcore.join._rig import RigFacts, _rig_of
 from smplcore.join.body import copy_params, local_rotations, rotations_as_axis_angle, set_joint, world_rotations
 from smplcore.join.hands import JoinResult
-from smplcore.join.mano import camera_rotation
-from smplcore.join.rotations import angle_between, as_rotations, to_axis_angle
+from smplcore.join.mano import check_camera_rotation
+from smplcore.join.rotations import angle_between, as_rotations, numpy_of, to_axis_angle
 
 #: FLAME's keywords that are rotations of one joint each.
 _FLAME_POSES = ("global_orient", "neck_pose", "jaw_pose", "leye_pose", "reye_pose")
@@ -202,10 +202,13 @@ def join_head(
     rig = _smplx_rig(body_model)
     if isinstance(head, dict):
         head = FlameHead(**head)
+    if not isinstance(head, FlameHead):
+        raise TypeError(f"head: expected a FlameHead or a dict of its fields, got {type(head).__name__}")
+    head = replace(head, **{f.name: numpy_of(getattr(head, f.name)) for f in fields(head)})
     params, batch = copy_params(body_params, (_head_batch(head),))
     rotations_as_axis_angle(rig, params, batch)
     flame_head = _rotations(head, "global_orient", batch) @ _rotations(head, "neck_pose", batch)
-    cam = camera_rotation(head.camera_rotation, "head")
+    cam = check_camera_rotation(head.camera_rotation, "head")
     if cam is not None:
         flame_head = np.swapaxes(cam, -1, -2) @ flame_head
     world = world_rotations(rig, local_rotations(rig, params, batch))
@@ -272,9 +275,8 @@ def split_head(
     head_joint = rig.joint_names.index("head")
     neck = int(rig.parents[head_joint])
     root = world[:, neck]
-    cam = None
-    if camera_rotation is not None:
-        cam = np.asarray(camera_rotation, dtype=np.float64)
+    cam = check_camera_rotation(camera_rotation, "split_head")
+    if cam is not None:
         root = cam @ root
     out = FlameHead(
         global_orient=to_axis_angle(root),

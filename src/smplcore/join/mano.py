@@ -3,14 +3,14 @@ hand estimators use -- world or camera frame, full or PCA pose, flat or mean-rel
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from smplcore.errors import ShapeError
 from smplcore.join._rig import RigFacts, _rig_of
-from smplcore.join.rotations import MIRROR, as_rotations, mirror_axis_angle, mirror_matrix, to_axis_angle
+from smplcore.join.rotations import MIRROR, as_rotations, mirror_axis_angle, mirror_matrix, numpy_of, to_axis_angle
 
 SIDES = ("left", "right")
 
@@ -120,10 +120,10 @@ def finger_axis_angle(hand: ManoHand, comps: np.ndarray | None, mean: np.ndarray
     return pose + mean
 
 
-def camera_rotation(value: Any, label: str) -> np.ndarray | None:
+def check_camera_rotation(value: Any, label: str) -> np.ndarray | None:
     if value is None:
         return None
-    r = np.asarray(value, dtype=np.float64)
+    r = numpy_of(value)
     if r.shape[-2:] != (3, 3) or r.ndim not in (2, 3):
         raise ShapeError(f"{label}.camera_rotation: expected shape (3, 3) or (B, 3, 3), got {r.shape}")
     if not np.allclose(r @ np.swapaxes(r, -1, -2), np.eye(3), atol=1e-6) or np.any(np.linalg.det(r) < 0):
@@ -154,6 +154,8 @@ def hand_rotations(hand: ManoHand | dict, side: str, label: str | None = None) -
         hand = ManoHand(**hand)
     if not isinstance(hand, ManoHand):
         raise TypeError(f"{label}: expected a ManoHand or a dict of its fields, got {type(hand).__name__}")
+    arrays = ("global_orient", "hand_pose", "betas", "transl", "hand_mean", "components")
+    hand = replace(hand, **{k: numpy_of(getattr(hand, k)) for k in (*arrays, "camera_rotation", "camera_translation")})
     comps, mean, rig = _convention(hand, side, label)
     fingers = finger_axis_angle(hand, comps, mean, label)
     orient = as_rotations(f"{label}.global_orient", hand.global_orient, 1)[:, 0]
@@ -164,7 +166,7 @@ def hand_rotations(hand: ManoHand | dict, side: str, label: str | None = None) -
         fingers = mirror_axis_angle(fingers)
         orient = mirror_matrix(orient)
         wrist = None if wrist is None else wrist @ MIRROR
-    cam = camera_rotation(hand.camera_rotation, label)
+    cam = check_camera_rotation(hand.camera_rotation, label)
     if cam is not None:
         orient = np.swapaxes(cam, -1, -2) @ orient
         if wrist is not None:

@@ -16,6 +16,16 @@ MIRROR = np.diag([-1.0, 1.0, 1.0])
 MIRROR_AXIS_ANGLE = np.array([1.0, -1.0, -1.0])
 
 
+def numpy_of(value: Any) -> Any:
+    """``value`` as a float64 NumPy array (torch tensors on any device, with or without grad, included); None
+    stays None."""
+    if value is None:
+        return None
+    if hasattr(value, "detach") and hasattr(value, "cpu"):
+        value = value.detach().cpu().numpy()
+    return np.asarray(value, dtype=np.float64)
+
+
 def to_matrix(rotvec: np.ndarray) -> np.ndarray:
     """(..., 3) axis-angle to (..., 3, 3) rotation matrices (float64)."""
     return rodrigues(np.asarray(rotvec, dtype=np.float64))
