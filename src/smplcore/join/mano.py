@@ -108,7 +108,8 @@ def finger_axis_angle(hand: ManoHand, comps: np.ndarray | None, mean: np.ndarray
         if np.any(mean):
             raise ValueError(
                 f"{label}.hand_pose: rotation matrices are absolute finger rotations; they cannot be "
-                "relative to a mean hand pose (flat_hand_mean=False)"
+                "relative to a mean hand pose (flat_hand_mean=False): create the MANO model with "
+                "flat_hand_mean=True (as HaMeR and WiLoR do), or pass axis-angle"
             )
         return to_axis_angle(as_rotations(f"{label}.hand_pose", pose, 15)).reshape(-1, 45)
     pose = np.atleast_2d(pose)
