@@ -136,6 +136,33 @@ def test_flame_orientation_in_the_camera_frame_sets_the_head_joint(models):
     assert "expression" not in result.params or np.array_equal(result.params["expression"], params["expression"])
 
 
+def test_the_split_head_is_what_flame_takes(models):
+    """Posed by the FLAME model, the split head's root joint sits on SMPL-X's neck joint and its neck joint has
+    SMPL-X's head orientation; jaw and eyes carry their local rotations (camera frame included)."""
+    body, flame = models["body"], models["same"]
+    params = _body_params(np.random.default_rng(17))
+    params["transl"] = np.array([[0.1, -0.2, 0.3]])
+    t = np.array([0.0, 0.1, 2.0])
+    head = split_head(body, params, flame, vertex_ids=models["ids"], camera_rotation=CAMERA, camera_translation=t)
+    out = flame(
+        global_orient=head.global_orient,
+        neck_pose=head.neck_pose,
+        jaw_pose=head.jaw_pose,
+        leye_pose=head.leye_pose,
+        reye_pose=head.reye_pose,
+        betas=head.betas,
+        transl=head.transl,
+        expression=head.expression,
+    )
+    rig = body.rig
+    neck, head_joint = rig.joint_names.index("neck"), rig.joint_names.index("head")
+    body_out = body(**params)
+    np.testing.assert_allclose(out.joints[:, 0], body_out.joints[:, neck] @ CAMERA.T + t, atol=1e-9)
+    world = world_rotations(rig, local_rotations(rig, params, 2))
+    flame_head = out.rotmats[:, 0] @ out.rotmats[:, 1]
+    assert angle_between(flame_head, CAMERA @ world[:, head_joint]).max() <= 1e-9
+
+
 def test_join_head_refuses_wrong_inputs(models, fake_models):
     body, flame, ids = models["body"], models["same"], models["ids"]
     with pytest.raises(ValueError, match="vertex_ids: mode='auto' needs"):

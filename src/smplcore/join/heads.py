@@ -17,7 +17,14 @@ import numpy as np
 
 from smplcore.errors import ShapeError
 from smplcore.join._rig import RigFacts, _rig_of
-from smplcore.join.body import copy_params, local_rotations, rotations_as_axis_angle, set_joint, world_rotations
+from smplcore.join.body import (
+    copy_params,
+    joint_positions,
+    local_rotations,
+    rotations_as_axis_angle,
+    set_joint,
+    world_rotations,
+)
 from smplcore.join.hands import JoinResult
 from smplcore.join.mano import check_camera_rotation
 from smplcore.join.rotations import angle_between, as_rotations, numpy_of, to_axis_angle
@@ -260,13 +267,16 @@ def split_head(
     vertex_ids: Any = None,
     expression: str = "auto",
     camera_rotation: Any = None,
+    camera_translation: Any = None,
 ) -> FlameHead:
     """An SMPL-X body's head as FLAME parameters (the inverse of :func:`join_head`).
 
     ``global_orient`` is the world rotation of SMPL-X's neck joint (FLAME's root), in the camera frame with
-    ``camera_rotation``; ``neck_pose`` the head joint's local rotation; ``jaw_pose`` / ``leye_pose`` /
-    ``reye_pose`` as they are; ``expression`` mapped with :func:`expression_map` (``flame_model`` and
-    ``vertex_ids`` as there), or None when the body has none. Shape does not transfer (``betas`` None).
+    ``camera_rotation`` (and ``camera_translation``, world to camera); ``neck_pose`` the head joint's local
+    rotation; ``jaw_pose`` / ``leye_pose`` / ``reye_pose`` as they are; ``expression`` mapped with
+    :func:`expression_map` (``flame_model`` and ``vertex_ids`` as there), or None when the body has none.
+    With ``flame_model``, ``transl`` puts FLAME's root joint on SMPL-X's neck joint (zero FLAME ``betas``:
+    shape does not transfer).
     """
     rig = _smplx_rig(body_model)
     params, batch = copy_params(body_params)
@@ -275,14 +285,22 @@ def split_head(
     head_joint = rig.joint_names.index("head")
     neck = int(rig.parents[head_joint])
     root = world[:, neck]
+    position = joint_positions(rig, params, world)[:, neck] if flame_model is not None else None
     cam = check_camera_rotation(camera_rotation, "split_head")
     if cam is not None:
         root = cam @ root
+        if position is not None:
+            t = np.zeros(3) if camera_translation is None else numpy_of(camera_translation)
+            position = np.einsum("...ij,...j->...i", cam, position) + t
     out = FlameHead(
         global_orient=to_axis_angle(root),
         neck_pose=to_axis_angle(local[:, head_joint]),
         camera_rotation=cam,
     )
+    if position is not None:
+        flame = _flame_rig(flame_model)
+        out.transl = position - flame.template_joints[0]
+        out.betas = np.zeros((batch, flame.num_betas))
     for name, joint in _FACE_JOINTS.items():
         setattr(out, name, to_axis_angle(local[:, rig.joint_names.index(joint)]))
     body_expr = params.get("expression")
