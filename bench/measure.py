@@ -56,7 +56,8 @@ def main() -> None:
     dt = time.perf_counter() - t
     ok = (np.abs(fit.residual["stature"]) <= 0.005) & (np.abs(fit.residual["waist"]) <= 0.01)
     print(
-        f"fit_shape stature+mass+waist, {args.bodies} bodies, {args.num_betas} betas: {dt / args.bodies * 1e3:.0f} ms per body, "
+        f"fit_shape stature+mass+waist, {args.bodies} bodies, {args.num_betas} betas: "
+        f"{dt / args.bodies * 1e3:.0f} ms per body, "
         f"{np.mean(fit.iterations):.1f} iterations; reached {ok.mean() * 100:.0f} % "
         f"(|mass residual| median {np.median(np.abs(fit.residual['mass'])):.2f} kg, "
         f"max {np.max(np.abs(fit.residual['mass'])):.2f} kg)"
