@@ -8,6 +8,8 @@ from typing import Any
 import numpy as np
 from scipy.optimize import lsq_linear
 
+from smplcore.io.open_ages import age_for_stature
+from smplcore.measure._aging import AgeAxis
 from smplcore.measure._rig import _rig_of
 from smplcore.measure.api import rest_body
 from smplcore.measure.definitions import DEFAULT_DENSITY, MEASUREMENTS, measure_body
@@ -25,12 +27,14 @@ _ALIASES = {"height": "stature"}
 @dataclass
 class ShapeFit:
     """Result of :func:`fit_shape`: ``betas`` (num_betas,) or (B, num_betas); ``measured`` and ``residual``
-    (measured − target) per measurement, floats or (B,) arrays; ``iterations`` run per body."""
+    (measured − target) per measurement, floats or (B,) arrays; ``iterations`` run per body; ``age`` the
+    fitted age in years (float or (B,)) with ``fit_age=True``, else None."""
 
     betas: np.ndarray
     measured: dict[str, Any]
     residual: dict[str, Any]
     iterations: Any
+    age: Any = None
 
 
 def _jacobian_row(lin: Linear, shapedirs: np.ndarray) -> np.ndarray:
@@ -38,6 +42,11 @@ def _jacobian_row(lin: Linear, shapedirs: np.ndarray) -> np.ndarray:
     if len(lin.rows) == 0:
         return np.zeros(shapedirs.shape[2])
     return np.einsum("kc,kcb->b", lin.weights, shapedirs[lin.rows])
+
+
+#: Finite-difference step (years) of the age column of the Jacobian, and the largest age step per iteration.
+AGE_STEP = 0.1
+AGE_TRUST = 3.0
 
 
 def _fit_one(
@@ -50,9 +59,10 @@ def _fit_one(
     iterations: int,
     density: float,
     start: np.ndarray,
-) -> tuple[np.ndarray, dict[str, float], int]:
+    axis: AgeAxis | None = None,
+    age: float = 25.0,
+) -> tuple[np.ndarray, dict[str, float], int, float]:
     rig = _rig_of(model)
-    shapedirs = np.asarray(rig.shapedirs, dtype=np.float64)[:, :, : len(start)]
     names = tuple(targets)
     scale = np.array([TOLERANCES[n] / np.sqrt(weights.get(n, 1.0)) for n in names])
     goal = np.array([targets[n] for n in names])
@@ -62,19 +72,32 @@ def _fit_one(
     done = 0
     measured = {}
     for it in range(iterations + 1):
-        lins = measure_body(rest_body(model, beta, density=density), names)
+        here = rig if axis is None else axis.at(age)
+        shapedirs = np.asarray(here.shapedirs, dtype=np.float64)[:, :, :nb]
+        lins = measure_body(rest_body(here, beta, density=density), names)
         measured = {n: lins[n].value for n in names}
-        r = (np.array([measured[n] for n in names]) - goal) / scale
+        values = np.array([measured[n] for n in names])
+        r = (values - goal) / scale
         if it == iterations or np.all(np.abs(r) < 0.05):
             break
         jac = np.stack([_jacobian_row(lins[n], shapedirs) for n in names]) / scale[:, None]
         # minimise |r + J d|^2 + prior |beta + d|^2 over the step d, with lower <= beta + d <= upper
         a = np.vstack([jac, sq * np.eye(nb)])
         rhs = np.concatenate([-r, -sq * beta])
-        step = lsq_linear(a, rhs, bounds=(lower - beta, upper - beta + 1e-12), method="bvls").x
-        beta = np.clip(beta + step, lower, upper)
+        lo, hi = lower - beta, upper - beta + 1e-12
+        if axis is not None:  # one more unknown, the age: its column by a finite difference, no prior
+            other = age + AGE_STEP if age + AGE_STEP <= axis.bounds[1] else age - AGE_STEP
+            moved = measure_body(rest_body(axis.at(other), beta, density=density), names)
+            col = (np.array([moved[n].value for n in names]) - values) / (other - age) / scale
+            a = np.hstack([a, np.concatenate([col, np.zeros(nb)])[:, None]])
+            lo = np.append(lo, max(axis.bounds[0], age - AGE_TRUST) - age)
+            hi = np.append(hi, min(axis.bounds[1], age + AGE_TRUST) - age + 1e-12)
+        step = lsq_linear(a, rhs, bounds=(lo, hi), method="bvls").x
+        beta = np.clip(beta + step[:nb], lower, upper)
+        if axis is not None:
+            age = float(np.clip(age + step[nb], *axis.bounds))
         done = it + 1
-    return beta, measured, done
+    return beta, measured, done, age
 
 
 def fit_shape(
@@ -87,6 +110,8 @@ def fit_shape(
     num_betas: int | None = None,
     density: float = DEFAULT_DENSITY,
     betas0: np.ndarray | None = None,
+    fit_age: bool = False,
+    age0: float | None = None,
     **targets: Any,
 ) -> ShapeFit:
     """Shape coefficients whose rest-pose body has the given measurements.
@@ -116,10 +141,17 @@ def fit_shape(
     num_betas : fit only the first ``num_betas`` coefficients (default all the model takes).
     density : kg/m³ for mass and BMI.
     betas0 : (num_betas,) or (B, num_betas) starting point (default the mean shape).
+    fit_age : the open model only: solve the age (years, 1-90) with the betas. The age is one more unknown
+        of each Gauss-Newton step (its column of the Jacobian by a finite difference of 0.1 year, a step of
+        at most 3 years, no prior), the body at each age built as ``BodyModel(model_type="open",
+        age=years)`` builds it, whatever age ``model`` was made at.
+    age0 : the starting age with ``fit_age`` (default: the age whose mean body has the target stature,
+        :func:`smplcore.io.age_for_stature`, or 25 without a stature target).
 
     Returns
     -------
-    :class:`ShapeFit` with ``betas`` (num_betas,) or (B, num_betas) and the residual per measurement.
+    :class:`ShapeFit` with ``betas`` (num_betas,) or (B, num_betas), the residual per measurement and,
+    with ``fit_age``, ``age``.
     """
     rig = _rig_of(model)
     if "height" in targets and "stature" in targets:
@@ -156,15 +188,24 @@ def fit_shape(
         np.zeros((count, nb)) if betas0 is None else np.broadcast_to(np.asarray(betas0, float)[..., :nb], (count, nb))
     )
 
-    out_b, out_m, out_it = [], [], []
+    axis = AgeAxis(rig) if fit_age else None
+    if age0 is not None and not (np.isfinite(age0) and 1.0 <= float(age0) <= 90.0):
+        raise ValueError(f"age0: expected years in [1, 90], got {age0}")
+    out_b, out_m, out_it, out_a = [], [], [], []
     for i in range(count):
         t = {k: float(a if a.ndim == 0 else a.reshape(-1)[i]) for k, a in arrays.items()}
-        beta, measured, its = _fit_one(model, t, w, lower, upper, prior, iterations, density, start[i])
+        a0 = 25.0
+        if age0 is not None:
+            a0 = float(age0)
+        elif axis is not None and "stature" in t:
+            a0 = age_for_stature(t["stature"], axis.gender)
+        beta, measured, its, age = _fit_one(model, t, w, lower, upper, prior, iterations, density, start[i], axis, a0)
         full = np.zeros(rig.num_betas)
         full[:nb] = beta
         out_b.append(full)
         out_m.append(measured)
         out_it.append(its)
+        out_a.append(age)
     names = list(arrays)
     measured_d = {n: np.array([m[n] for m in out_m]) for n in names}
     residual = {n: measured_d[n] - np.broadcast_to(arrays[n], (count,)) for n in names}
@@ -174,5 +215,6 @@ def fit_shape(
             {n: float(v[0]) for n, v in measured_d.items()},
             {n: float(v[0]) for n, v in residual.items()},
             out_it[0],
+            out_a[0] if fit_age else None,
         )
-    return ShapeFit(np.stack(out_b), measured_d, residual, np.array(out_it))
+    return ShapeFit(np.stack(out_b), measured_d, residual, np.array(out_it), np.array(out_a) if fit_age else None)
