@@ -47,12 +47,20 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 DATA = REPO_ROOT / "src" / "smplcore" / "data"
 OUT = DATA / "open_ages.npz"
 
-# Stature-for-age medians (cm) at whole years. Ages 2-4: WHO Child Growth Standards (2006), length/height-
-# for-age, the height (standing) medians; ages 5-19: WHO Growth Reference 2007 (de Onis et al., Bull World
-# Health Organ 85:660-667, 2007), height-for-age medians (M of the LMS tables). Rounded to 0.1 cm; transcribed
-# by hand, not downloaded. Age 1: WHO 2006 length-for-age median (lying length). Ages 20+: the adult
-# statures the open model was built for (NHANES 2015-2016 means, men 175.4 cm, women 161.7 cm; see
-# build_open_model.POPULATION). The neutral model takes the mean of boys and girls.
+# Stature-for-age medians (cm) at whole years, the M column of WHO's LMS tables rounded to 0.1 cm:
+# * ages 1-5: WHO Child Growth Standards (2006), length/height-for-age, expanded tables
+#   https://www.who.int/tools/child-growth-standards/standards/length-height-for-age
+#   (tab_lhfa_boys_p_0_2.txt / tab_lhfa_boys_p_2_5.txt and the girls' files): age 1 the lying length
+#   (boys 75.7488, girls 74.0150 at 12 months), ages 2-5 the standing height (24 months: boys 87.1161,
+#   girls 85.7153, i.e. length - 0.7 cm; 60 months: boys 109.9638, girls 109.4233);
+# * ages 6-19: WHO Growth Reference 2007 (de Onis et al., Bull World Health Organ 85:660-667, 2007),
+#   height-for-age 5-19 years, hfa_boys_z_WHO2007_exp.txt / hfa_girls_z_WHO2007_exp.txt
+#   https://www.who.int/tools/growth-reference-data-for-5to19-years/indicators/height-for-age
+#   (e.g. 228 months: boys 176.5432, girls 163.1548).
+# Checked value by value (Dec 2026) against two independent public transcriptions of those LMS tables;
+# one correction: girls at 11 years 145.0 (M = 144.9929), was 144.9. Ages 20+: the adult statures the open
+# model was built for (NHANES 2015-2016 means, men 175.4 cm, women 161.7 cm; see build_open_model.POPULATION).
+# The neutral model takes the mean of boys and girls.
 STATURE_MEDIAN_CM = {
     "male": {
         1: 75.7,
@@ -86,7 +94,7 @@ STATURE_MEDIAN_CM = {
         8: 126.6,
         9: 132.5,
         10: 138.6,
-        11: 144.9,
+        11: 145.0,
         12: 151.2,
         13: 156.4,
         14: 159.8,
