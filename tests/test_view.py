@@ -163,6 +163,34 @@ def test_beta_slider_reposes_the_scene_mesh(viewer, open_model):
     assert len(viewer.timings) >= 1
 
 
+def test_age_slider_rebuilds_the_open_model_at_that_age_keeping_shape_and_pose(viewer):
+    from smplcore import BodyModel
+
+    c = viewer.controls
+    assert c.age is not None and c.age.value == 25.0  # the open model: an age slider, the adult to start
+    c.betas[0].value = 1.0
+    c.joint.value = "left_shoulder"
+    c.rotation[2].value = -60.0
+    c.age.value = 6.0
+    kid = BodyModel(model_type="open", gender="neutral", age=6.0, num_betas=10)
+    assert viewer.ages[0] == 6.0 and viewer.bodies[0].betas[0] == 1.0
+    pose = np.zeros((1, 69))
+    pose[0, 3 * (kid.skeleton_joint_names.index("left_shoulder") - 1) + 2] = -np.pi / 3
+    expected = kid(betas=np.array([[1.0] + [0.0] * 9]), body_pose=pose).vertices[0]
+    mesh = np.array(viewer._nodes[0]["mesh"].vertices)
+    np.testing.assert_allclose(mesh, expected, atol=1e-5)
+    assert np.ptp(mesh[:, 1]) < 1.3  # a six-year-old, not the adult
+    c.gender.value = "female"  # another gender keeps the age
+    assert viewer.ages[0] == 6.0 and c.age.value == 6.0
+    np.testing.assert_allclose(
+        np.array(viewer._nodes[0]["mesh"].vertices),
+        BodyModel(model_type="open", gender="female", age=6.0)(
+            betas=np.array([[1.0] + [0.0] * 9]), body_pose=pose
+        ).vertices[0],
+        atol=1e-5,
+    )
+
+
 def test_joint_rotation_sliders_rotate_the_picked_joint(viewer, open_model):
     c = viewer.controls
     c.joint.value = "left_shoulder"

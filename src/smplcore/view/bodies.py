@@ -30,13 +30,16 @@ def build_model(
     num_betas: int = 10,
     num_expression_coeffs: int = 10,
     flat_hand_mean: bool = False,
+    age: float | None = None,
 ) -> Any:
-    """A NumPy body model for viewing: the open model without ``model_path``; hands as full axis-angle poses
-    (no PCA), so every hand joint has its own rotation control."""
+    """A NumPy body model for viewing: the open model without ``model_path`` (at ``age`` years if given);
+    hands as full axis-angle poses (no PCA), so every hand joint has its own rotation control."""
     from smplcore import BodyModel
 
     options: dict[str, Any] = {"num_betas": max(int(num_betas), 1), "flat_hand_mean": flat_hand_mean}
     if model_path is None and model_type in (None, "open"):
+        if age is not None:
+            options["age"] = float(age)
         return BodyModel(model_type="open", gender=gender, **options)  # it has three genders too
     if model_type not in (None, "open", "mano", "flame", "smpl"):
         options["use_pca"] = False

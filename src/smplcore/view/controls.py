@@ -1,6 +1,7 @@
 """The viewer's GUI panel (viser widgets) and what each widget does to the bodies.
 
-Panels, top to bottom: Body (which body, model type, gender), Shape (betas sliders), Expression, Pose
+Panels, top to bottom: Body (which body, model type, gender), Shape (betas sliders; the open model's age
+in years), Expression, Pose
 (a joint picker and its rotation about X, Y, Z in degrees), Motion (play, frame, speed), Display (skeleton,
 joint names), Save (mesh, glb). Shape, Expression and Pose follow the selected body and are rebuilt when it
 or its model changes.
@@ -22,14 +23,16 @@ if TYPE_CHECKING:
     from smplcore.view.viewer import Viewer
 
 BETA_RANGE = 3.0  # sliders span [-3, 3] (standard deviations of the shape space)
+ADULT_AGE = 25.0  # the age slider's position for the open model's default (adult) body
 MAX_SLIDERS = 16  # shape / expression sliders shown at most
 _ORDER = {"body": 0, "shape": 1, "expression": 2, "pose": 3, "motion": 4, "display": 5, "save": 6}
 
 
 class Controls:
-    """The GUI of a :class:`~smplcore.view.viewer.Viewer`. Attributes hold the widgets (``betas``,
-    ``expression``, ``joint``, ``rotation``, ``play``, ``frame``, ``speed``, ``skeleton``, ``names``,
-    ``save_mesh``, ``save_glb``, ``status``) so scripts and tests can drive them like a user."""
+    """The GUI of a :class:`~smplcore.view.viewer.Viewer`. Attributes hold the widgets (``betas``, ``age``
+    (the open model's age slider, None for other models), ``expression``, ``joint``, ``rotation``, ``play``,
+    ``frame``, ``speed``, ``skeleton``, ``names``, ``save_mesh``, ``save_glb``, ``status``) so scripts and
+    tests can drive them like a user."""
 
     def __init__(self, viewer: Viewer) -> None:
         self.viewer = viewer
@@ -133,6 +136,14 @@ class Controls:
                 for k in range(min(body.betas.size, MAX_SLIDERS))
             ]
             reset_shape = gui.add_button("reset shape")
+            self.age = None
+            if body.model.model_type == "open":  # the open model's age axis: infants to elders
+                years = self.viewer.ages[self.selected]
+                self.age = gui.add_slider(
+                    "age (years)", min=1.0, max=90.0, step=0.5, initial_value=ADULT_AGE if years is None else years
+                )
+        if self.age is not None:
+            self.age.on_update(self._quietly(lambda _: self._set_age()))
         for k, slider in enumerate(self.betas):
             slider.on_update(self._quietly(self._coefficient_setter("betas", k, slider)))
         reset_shape.on_click(lambda _: self._reset("betas"))
@@ -174,6 +185,12 @@ class Controls:
             self.viewer.refresh(self.selected)
 
         return update
+
+    def _set_age(self) -> None:
+        """Rebuild the selected (open) body at the slider's age, keeping its shape and pose."""
+        assert self.age is not None
+        self.viewer.switch_model(self.selected, "open", self.gender.value, age=float(self.age.value))
+        self.viewer.refresh(self.selected)
 
     def _reset(self, what: str) -> None:
         body = self._body
@@ -219,7 +236,9 @@ class Controls:
     def _on_model(self, _: Any) -> None:
         before = self._body.model.model_type
         try:
-            self.viewer.switch_model(self.selected, self.model.value, self.gender.value)
+            self.viewer.switch_model(
+                self.selected, self.model.value, self.gender.value, self.viewer.ages[self.selected]
+            )
         except Exception as exc:  # the model's own error (file missing, wrong type): shown, state kept
             self.status.content = f"**could not load {self.model.value} / {self.gender.value}:** {exc}"
             with self._silent():

@@ -75,10 +75,12 @@ class Viewer:
             raise ValueError(f"lighting: expected one of {', '.join(LIGHTING)}, got {lighting!r}")
         self.bodies: list[Body] = []
         self.genders: list[str] = []
+        self.ages: list[float | None] = []  # the open model's age per body (None: the adult model)
         for i, src in enumerate(srcs):
             model = models[i] if models and i < len(models) else self._model_for(src)
             self.bodies.append(Body(model, src))
             self.genders.append(self._gender_for(src))
+            self.ages.append(None)
         self.keypoints = None if keypoints is None else _keypoints(keypoints)
         # The server starts once every input has loaded: a bad file leaves no server behind.
         with _quiet_stdout(not verbose):  # viser prints a banner; a library does not print
@@ -103,7 +105,9 @@ class Viewer:
     # ----------------------------------------------------------------------------------------------
     # models
 
-    def _model_for(self, src: Source, model_type: str | None = None, gender: str | None = None) -> Any:
+    def _model_for(
+        self, src: Source, model_type: str | None = None, gender: str | None = None, age: float | None = None
+    ) -> Any:
         path = src.model_path if src.model_path is not None else self.model_path
         mtype = model_type if model_type is not None else (None if src.model_path is not None else self.model_type)
         motion_like = src.motion is not None or src.bvh is not None
@@ -114,7 +118,8 @@ class Viewer:
             betas = max(10, int(np.asarray(src.params["betas"]).shape[-1]))
         if mtype == "open":
             path = None
-        return build_model(path, mtype, self._gender_for(src, gender), num_betas=betas, flat_hand_mean=motion_like)
+        gender = self._gender_for(src, gender)
+        return build_model(path, mtype, gender, num_betas=betas, flat_hand_mean=motion_like, age=age)
 
     def _gender_for(self, src: Source, gender: str | None = None) -> str:
         """The gender asked for, else the viewer's, else the motion's, else neutral."""
@@ -124,12 +129,13 @@ class Viewer:
             return str(src.motion.gender)
         return "neutral"
 
-    def switch_model(self, index: int, model_type: str, gender: str) -> None:
-        """Give body ``index`` another model (type and gender), keeping its shape and pose where the joints
-        and coefficients match. Raises the model's own error when it cannot be loaded."""
+    def switch_model(self, index: int, model_type: str, gender: str, age: float | None = None) -> None:
+        """Give body ``index`` another model (type and gender; the open model at ``age`` years if given),
+        keeping its shape and pose where the joints and coefficients match. Raises the model's own error
+        when it cannot be loaded."""
         with self._lock:
             old = self.bodies[index]
-            model = self._model_for(old.source, model_type, gender)
+            model = self._model_for(old.source, model_type, gender, age if model_type == "open" else None)
             new = Body(model, old.source)
             k = min(new.betas.size, old.betas.size)
             new.betas[:k] = old.betas[:k]
@@ -143,6 +149,7 @@ class Viewer:
                 new.set_frame(old.frame)
             self.bodies[index] = new
             self.genders[index] = gender
+            self.ages[index] = age if model_type == "open" else None
             self._remove_body_nodes(index)
             self._add_body_nodes(index)
 
