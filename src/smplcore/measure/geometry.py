@@ -7,7 +7,7 @@ weights held fixed), which :func:`smplcore.measure.fit_shape` chains through the
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
@@ -22,7 +22,8 @@ __all__ = ["Topology", "Loop", "topology", "section", "hull_girth", "volume", "L
 class Topology:
     """Edges of a triangle mesh: ``edges`` (E, 2) vertex pairs, ``face_edges`` (F, 3) edge of each
     face side (side k joins corners k and k+1), ``boundary`` (B, 2) directed boundary edges (as in
-    their face) and ``boundary_loop`` (B,) the hole each belongs to."""
+    their face) and ``boundary_loop`` (B,) the hole each belongs to; ``edge_faces`` (3F,) the faces of
+    each edge, edge by edge, those of edge ``e`` at ``edge_face_start[e]:edge_face_start[e + 1]``."""
 
     faces: np.ndarray
     edges: np.ndarray
@@ -30,6 +31,8 @@ class Topology:
     boundary: np.ndarray
     boundary_loop: np.ndarray
     num_holes: int
+    edge_faces: np.ndarray
+    edge_face_start: np.ndarray
 
 
 def _build_topology(faces: np.ndarray) -> Topology:
@@ -48,7 +51,38 @@ def _build_topology(faces: np.ndarray) -> Topology:
         num_holes = len(used)
     else:
         loop, num_holes = np.zeros(0, dtype=np.int64), 0
-    return Topology(f, edges, face_edges, boundary, np.asarray(loop, dtype=np.int64), int(num_holes))
+    edge_faces = np.argsort(inverse, kind="stable") // 3
+    start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    loops = np.asarray(loop, dtype=np.int64)
+    return Topology(f, edges, face_edges, boundary, loops, int(num_holes), edge_faces, start)
+
+
+def _faces_of(topo: Topology, ids: np.ndarray) -> np.ndarray:
+    """The faces (sorted, unique) that have one of the edges ``ids``."""
+    lo, hi = topo.edge_face_start[ids], topo.edge_face_start[ids + 1]
+    n = hi - lo
+    idx = np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n) + np.repeat(lo, n)
+    return np.unique(topo.edge_faces[idx])
+
+
+def _components(n: int, a: np.ndarray, b: np.ndarray) -> tuple[int, np.ndarray]:
+    """Connected components of the graph on ``n`` nodes with edges ``a[k]``-``b[k]``: their count and
+    each node's label, components numbered in the order of their smallest node."""
+    parent = list(range(n))
+
+    def root(x: int) -> int:
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    for x, y in zip(a.tolist(), b.tolist()):
+        rx, ry = root(x), root(y)
+        if rx != ry:
+            parent[max(rx, ry)] = min(rx, ry)
+    roots = np.array([root(x) for x in range(n)], dtype=np.int64)
+    uniq, labels = np.unique(roots, return_inverse=True)  # roots are each component's smallest node
+    return len(uniq), labels.reshape(-1)
 
 
 @lru_cache(maxsize=8)
@@ -94,12 +128,24 @@ class Linear:
 @dataclass
 class Loop:
     """One connected curve of a plane section: ``points`` (N, 3) on the edges ``edge`` (N,) at
-    ``t`` (N,) from the edge's first vertex; ``closed`` when it does not end at a hole."""
+    ``t`` (N,) from the edge's first vertex; ``closed`` when it does not end at a hole. ``hulls`` caches
+    its convex hull in a plane's 2-D basis (keyed by the plane's normal)."""
 
     points: np.ndarray
     edge: np.ndarray
     t: np.ndarray
     closed: bool
+    hulls: dict = field(default_factory=dict, repr=False)
+
+
+def _loop_hull(loop: Loop, normal: np.ndarray) -> tuple[np.ndarray, ConvexHull | None]:
+    """The loop's points in the plane's basis (N, 2) and their convex hull (None when degenerate)."""
+    key = tuple(np.asarray(normal, dtype=np.float64).tolist())
+    if key not in loop.hulls:
+        u, w = _basis(np.asarray(normal, dtype=np.float64))
+        p2 = np.stack([loop.points @ u, loop.points @ w], axis=1)
+        loop.hulls[key] = (p2, _hull(p2))
+    return loop.hulls[key]
 
 
 def _basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -124,15 +170,13 @@ def section(vertices: np.ndarray, topo: Topology, point: np.ndarray, normal: np.
     cut = above[e[:, 0]] != above[e[:, 1]]
     if not cut.any():
         return []
-    fcut = cut[topo.face_edges]  # (F, 3)
-    faces_cut = fcut.sum(axis=1) == 2
-    pairs = topo.face_edges[faces_cut][fcut[faces_cut]].reshape(-1, 2)  # two cut edges per cut face
     ids = np.flatnonzero(cut)
+    fe = topo.face_edges[_faces_of(topo, ids)]  # the faces of the cut edges: each has two cut edges
+    pairs = fe[cut[fe]].reshape(-1, 2)
     local = np.full(len(e), -1, dtype=np.int64)
     local[ids] = np.arange(len(ids))
     a, b = local[pairs[:, 0]], local[pairs[:, 1]]
-    graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(len(ids), len(ids)))
-    count, labels = connected_components(graph, directed=False)
+    count, labels = _components(len(ids), a, b)
     degree = np.bincount(np.concatenate([a, b]), minlength=len(ids))
     da, db = d[e[ids, 0]], d[e[ids, 1]]
     t = da / (da - db)
@@ -161,8 +205,7 @@ def pick_loop(loops: list[Loop], point: np.ndarray, normal: np.ndarray) -> Loop 
     c = np.array([point @ u, point @ w])
     best, best_dist = None, np.inf
     for loop in loops:
-        p2 = np.stack([loop.points @ u, loop.points @ w], axis=1)
-        hull = _hull(p2)
+        p2, hull = _loop_hull(loop, normal)
         if hull is not None and np.all(hull.equations[:, :2] @ c + hull.equations[:, 2] <= 1e-12):
             return loop
         dist = float(np.min(np.linalg.norm(p2 - c, axis=1)))
@@ -174,9 +217,7 @@ def pick_loop(loops: list[Loop], point: np.ndarray, normal: np.ndarray) -> Loop 
 def hull_girth(loop: Loop, topo: Topology, normal: np.ndarray) -> Linear:
     """A tape measure around ``loop``: the perimeter of its convex hull in the cutting plane (metres),
     with its gradient with respect to the vertices of the cut edges."""
-    u, w = _basis(np.asarray(normal, dtype=np.float64))
-    p2 = np.stack([loop.points @ u, loop.points @ w], axis=1)
-    hull = _hull(p2)
+    _, hull = _loop_hull(loop, normal)
     if hull is None:
         return Linear.constant(0.0)
     order = hull.vertices  # counter-clockwise
