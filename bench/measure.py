@@ -15,6 +15,8 @@ import numpy as np
 import smplcore
 from smplcore.measure import MEASUREMENTS, fit_shape, measure
 
+# ANSUR II men (Gordon et al., NATICK/TR-15/007, 2014), means and SDs rounded; not verified against the
+# report's tables (see tests/test_measure_fit.py). The correlations are our assumption.
 ANSUR_II_MEN = {"stature": (1.756, 0.069), "mass": (85.5, 14.2), "waist": (0.941, 0.112)}
 CORRELATION = np.array([[1.0, 0.45, 0.20], [0.45, 1.0, 0.85], [0.20, 0.85, 1.0]])
 

@@ -10,7 +10,9 @@ from smplcore.measure import fit_shape, measure
 
 # ANSUR II men (C. C. Gordon et al., "2012 Anthropometric Survey of U.S. Army Personnel: Methods and Summary
 # Statistics", NATICK/TR-15/007, 2014): means and SDs of stature, weight and waist circumference (omphalion),
-# rounded. The correlations between them are our assumption (typical of adult surveys), not ANSUR's.
+# rounded. NOT VERIFIED against the report's summary tables (typed from memory; a search of public sources
+# found the report, https://www.scribd.com/document/565119966, but not its tables; a third-party summary of
+# ANSUR II medians agrees: men's stature 1.76 m, waist 0.94 m). The correlations are our assumption.
 ANSUR_II_MEN = {"stature": (1.756, 0.069), "mass": (85.5, 14.2), "waist": (0.941, 0.112)}
 CORRELATION = np.array([[1.0, 0.45, 0.20], [0.45, 1.0, 0.85], [0.20, 0.85, 1.0]])
 

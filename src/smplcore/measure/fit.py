@@ -47,6 +47,8 @@ def _jacobian_row(lin: Linear, shapedirs: np.ndarray) -> np.ndarray:
 #: Finite-difference step (years) of the age column of the Jacobian, and the largest age step per iteration.
 AGE_STEP = 0.1
 AGE_TRUST = 3.0
+#: Gauss-Newton stops once no beta moves by more than this (nor the age by ten times it) in a step.
+STEP_STOP = 1e-3
 
 
 def _fit_one(
@@ -93,10 +95,15 @@ def _fit_one(
             lo = np.append(lo, max(axis.bounds[0], age - AGE_TRUST) - age)
             hi = np.append(hi, min(axis.bounds[1], age + AGE_TRUST) - age + 1e-12)
         step = lsq_linear(a, rhs, bounds=(lo, hi), method="bvls").x
-        beta = np.clip(beta + step[:nb], lower, upper)
+        new = np.clip(beta + step[:nb], lower, upper)
+        moved = float(np.max(np.abs(new - beta), initial=0.0))
+        beta = new
         if axis is not None:
-            age = float(np.clip(age + step[nb], *axis.bounds))
+            old_age, age = age, float(np.clip(age + step[nb], *axis.bounds))
+            moved = max(moved, abs(age - old_age) / 10.0)
         done = it + 1
+        if moved < STEP_STOP:  # converged where the targets cannot all be met: measure once more, stop
+            iterations = it + 1
     return beta, measured, done, age
 
 
@@ -106,7 +113,7 @@ def fit_shape(
     weights: dict[str, float] | None = None,
     bounds: tuple[Any, Any] | float = 3.0,
     prior: float = 0.01,
-    iterations: int = 6,
+    iterations: int = 12,
     num_betas: int | None = None,
     density: float = DEFAULT_DENSITY,
     betas0: np.ndarray | None = None,
@@ -136,8 +143,8 @@ def fit_shape(
     bounds : ``(lower, upper)`` per coefficient (floats or (num_betas,) arrays), or one float ``c`` for
         ``(-c, c)`` (default 3: within three standard deviations).
     prior : weight of the Gaussian prior on the betas (default 0.01).
-    iterations : Gauss-Newton iterations at most (default 6; stops early when every residual is within
-        5 % of its tolerance).
+    iterations : Gauss-Newton iterations at most (default 12; stops early when every residual is within
+        5 % of its tolerance, or when no beta moves by more than 0.001 in a step).
     num_betas : fit only the first ``num_betas`` coefficients (default all the model takes).
     density : kg/m³ for mass and BMI.
     betas0 : (num_betas,) or (B, num_betas) starting point (default the mean shape).
