@@ -64,6 +64,17 @@ def main() -> None:
         f"(|mass residual| median {np.median(np.abs(fit.residual['mass'])):.2f} kg, "
         f"max {np.max(np.abs(fit.residual['mass'])):.2f} kg)"
     )
+    kid = smplcore.BodyModel(model_type="open", gender="female", dtype=np.float64, age=7.3)
+    truth = np.zeros(10)
+    truth[:3] = [0.5, -0.4, 0.3]
+    names = ["stature", "mass", "chest", "waist", "hip", "thigh", "neck", "inseam", "arm_length", "sitting_height"]
+    goals = measure(kid, truth, names=names)
+    t = time.perf_counter()
+    aged = fit_shape(kid, fit_age=True, **goals)
+    print(
+        f"fit_shape fit_age=True, a 7.3-year-old girl, {len(names)} measurements: "
+        f"{time.perf_counter() - t:.1f} s, age {aged.age:.2f}, {aged.iterations} iterations"
+    )
 
 
 if __name__ == "__main__":

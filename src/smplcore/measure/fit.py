@@ -68,20 +68,23 @@ def _fit_one(
     names = tuple(targets)
     scale = np.array([TOLERANCES[n] / np.sqrt(weights.get(n, 1.0)) for n in names])
     goal = np.array([targets[n] for n in names])
-    beta = np.clip(start.copy(), lower, upper)
-    nb = len(beta)
+    nb = len(start)
     sq = np.sqrt(prior)
+
+    def evaluate(beta: np.ndarray, years: float) -> tuple[dict, np.ndarray, float]:
+        here = rig if axis is None else axis.at(years)
+        lins = measure_body(rest_body(here, beta, density=density), names)
+        r = (np.array([lins[n].value for n in names]) - goal) / scale
+        return lins, r, float(r @ r + prior * (beta @ beta))
+
+    beta = np.clip(start.copy(), lower, upper)
+    lins, r, cost = evaluate(beta, age)
     done = 0
-    measured = {}
-    for it in range(iterations + 1):
+    for it in range(iterations):
+        if np.all(np.abs(r) < 0.05):
+            break
         here = rig if axis is None else axis.at(age)
         shapedirs = np.asarray(here.shapedirs, dtype=np.float64)[:, :, :nb]
-        lins = measure_body(rest_body(here, beta, density=density), names)
-        measured = {n: lins[n].value for n in names}
-        values = np.array([measured[n] for n in names])
-        r = (values - goal) / scale
-        if it == iterations or np.all(np.abs(r) < 0.05):
-            break
         jac = np.stack([_jacobian_row(lins[n], shapedirs) for n in names]) / scale[:, None]
         # minimise |r + J d|^2 + prior |beta + d|^2 over the step d, with lower <= beta + d <= upper
         a = np.vstack([jac, sq * np.eye(nb)])
@@ -89,22 +92,30 @@ def _fit_one(
         lo, hi = lower - beta, upper - beta + 1e-12
         if axis is not None:  # one more unknown, the age: its column by a finite difference, no prior
             other = age + AGE_STEP if age + AGE_STEP <= axis.bounds[1] else age - AGE_STEP
-            moved = measure_body(rest_body(axis.at(other), beta, density=density), names)
-            col = (np.array([moved[n].value for n in names]) - values) / (other - age) / scale
+            _, r_other, _ = evaluate(beta, other)
+            col = (r_other - r) / (other - age)
             a = np.hstack([a, np.concatenate([col, np.zeros(nb)])[:, None]])
             lo = np.append(lo, max(axis.bounds[0], age - AGE_TRUST) - age)
             hi = np.append(hi, min(axis.bounds[1], age + AGE_TRUST) - age + 1e-12)
         step = lsq_linear(a, rhs, bounds=(lo, hi), method="bvls").x
-        new = np.clip(beta + step[:nb], lower, upper)
-        moved = float(np.max(np.abs(new - beta), initial=0.0))
-        beta = new
-        if axis is not None:
-            old_age, age = age, float(np.clip(age + step[nb], *axis.bounds))
-            moved = max(moved, abs(age - old_age) / 10.0)
+        # the full step, or half of it, or a quarter: the first that lowers the cost (a girth's plane can
+        # jump between iterations, where the linear model overshoots)
+        accepted = False
+        for fraction in (1.0, 0.5, 0.25):
+            new_beta = np.clip(beta + fraction * step[:nb], lower, upper)
+            new_age = age if axis is None else float(np.clip(age + fraction * step[nb], *axis.bounds))
+            new_lins, new_r, new_cost = evaluate(new_beta, new_age)
+            if new_cost < cost:
+                accepted = True
+                break
         done = it + 1
-        if moved < STEP_STOP:  # converged where the targets cannot all be met: measure once more, stop
-            iterations = it + 1
-    return beta, measured, done, age
+        if not accepted:  # no descent along the step: a minimum of what the targets allow
+            break
+        moved = max(float(np.max(np.abs(new_beta - beta), initial=0.0)), abs(new_age - age) / 10.0)
+        beta, age, lins, r, cost = new_beta, new_age, new_lins, new_r, new_cost
+        if moved < STEP_STOP:
+            break
+    return beta, {n: lins[n].value for n in names}, done, age
 
 
 def fit_shape(
@@ -144,7 +155,8 @@ def fit_shape(
         ``(-c, c)`` (default 3: within three standard deviations).
     prior : weight of the Gaussian prior on the betas (default 0.01).
     iterations : Gauss-Newton iterations at most (default 12; stops early when every residual is within
-        5 % of its tolerance, or when no beta moves by more than 0.001 in a step).
+        5 % of its tolerance, or when no beta moves by more than 0.001 in a step). A step that does not
+        lower the cost is halved, then quartered; when neither does, the fit stops there.
     num_betas : fit only the first ``num_betas`` coefficients (default all the model takes).
     density : kg/m³ for mass and BMI.
     betas0 : (num_betas,) or (B, num_betas) starting point (default the mean shape).
