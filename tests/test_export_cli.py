@@ -163,7 +163,7 @@ def test_texture_option(tmp_path, capsys, smplh_motion, fake_models):
 
 def test_errors_exit_with_status_2(tmp_path, capsys, smplh_motion):
     path, _ = smplh_motion
-    assert main(["export", str(path), "-o", str(tmp_path / "x.fbx")]) == 2
+    assert main(["export", str(path), "-o", str(tmp_path / "x.abc")]) == 2
     assert "unsupported suffix" in capsys.readouterr().err
     assert main(["export", str(tmp_path / "missing.npz"), "-o", str(tmp_path / "x.glb")]) == 2
     assert "no such file" in capsys.readouterr().err

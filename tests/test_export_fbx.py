@@ -175,7 +175,8 @@ def test_open_model_with_uvs(tmp_path):
     vt, ft = model.setup.data.vt, model.setup.data.ft
     assert got["info"]["uv_sets"] == ["UVMap"]
     # ufbx's UV of every face corner is the model's: no seam splitting needed in FBX
-    np.testing.assert_allclose(got["uv_values"][got["uv_indices"]], np.asarray(vt)[np.asarray(ft).reshape(-1)], atol=1e-9)
+    corners = np.asarray(vt)[np.asarray(ft).reshape(-1)]
+    np.testing.assert_allclose(got["uv_values"][got["uv_indices"]], corners, atol=1e-9)
     with pytest.raises(ValueError, match="no pose-corrective"):
         save_fbx(tmp_path / "x.fbx", model, motion, pose_correctives=True)
 
@@ -238,7 +239,8 @@ def test_blender_imports_the_fbx(tmp_path, smpl, unit, up):
     data = _blender(tmp_path / "b.fbx", frames)
     names = list(smpl.skeleton_joint_names)
     assert data["fps"] == pytest.approx(30.0)
-    assert data["bones"] == ["root"] + names and data["parents"]["pelvis"] == "root"
+    assert sorted(data["bones"]) == sorted(["root"] + names) and data["parents"]["pelvis"] == "root"
+    assert all(data["parents"][n] == (names[p] if p >= 0 else "root") for n, p in zip(names, smpl.parents))
     assert data["shape_keys"] == ["Basis"] + [f"beta_{k}" for k in range(10)]
     assert data["vertex_groups"] == len(names)
     for k in frames:
@@ -246,3 +248,28 @@ def test_blender_imports_the_fbx(tmp_path, smpl, unit, up):
         np.testing.assert_allclose(data["vertices"][str(k)], verts, atol=TOL, rtol=0, err_msg=f"frame {k}")
         heads = np.array([data["heads"][str(k)][n] for n in names])
         np.testing.assert_allclose(heads, joints, atol=TOL, rtol=0, err_msg=f"frame {k}")
+
+
+def test_command_line(tmp_path, capsys, smpl, fake_models):
+    from smplcore.cli import main
+    from smplcore.motion import save_motion
+
+    motion = make_motion("smpl", seconds=0.4, fps=30.0, seed=9)
+    path = save_motion(motion, tmp_path / "walk.npz")
+    model_path = str(fake_models["smpl_neutral_pkl"])
+    args = ["export", str(path), "--model-path", model_path, "--num-betas", "10", "--no-progress"]
+    assert main(args + ["-o", str(tmp_path / "w.fbx"), "--up-axis", "z", "--root-bone", "root", "--morph-targets"]) == 0
+    printed = capsys.readouterr()
+    assert "(fbx," in printed.out and "12 frame(s) at 30 fps, 25 joints" in printed.out
+    assert "pose-corrective" in printed.out  # what the file does not hold is said
+    got = read_with_ufbx(tmp_path / "w.fbx", [0, 5])
+    assert got["info"]["up"] == 4 and got["info"]["parents"]["pelvis"] == "root"
+    assert got["info"]["blend_channels"] == [f"beta_{k}" for k in range(10)]
+    check_frames(got, smpl, motion, [0, 5])
+    # --format picks the writer (a suffix-less OUT gets it); --pose-correctives gives the exact body
+    assert main(args + ["-o", str(tmp_path / "exact"), "--format", "fbx", "--pose-correctives", "--fbx-unit", "m"]) == 0
+    got = read_with_ufbx(tmp_path / "exact.fbx", [0, 5])
+    assert got["info"]["unit_meters"] == pytest.approx(1.0)
+    check_frames(got, smpl, motion, [0, 5], correctives=True)
+    assert main(args + ["-o", str(tmp_path / "w.glb"), "--format", "fbx"]) == 2
+    assert "--format fbx" in capsys.readouterr().err

@@ -20,7 +20,8 @@ from smplcore.export.fbx.binary import I32, I64, Node
 KTIME_PER_SECOND = 46_186_158_000
 
 #: GlobalSettings TimeMode for the frame rates FBX names; any other rate is "custom" (14) + CustomFrameRate
-_TIME_MODES = {120.0: 1, 100.0: 2, 60.0: 3, 50.0: 4, 48.0: 5, 30.0: 6, 25.0: 10, 24.0: 11, 1000.0: 12, 96.0: 15, 72.0: 16}
+_TIME_MODES = {120.0: 1, 100.0: 2, 60.0: 3, 50.0: 4, 48.0: 5, 30.0: 6, 25.0: 10, 24.0: 11, 1000.0: 12}
+_TIME_MODES |= {96.0: 15, 72.0: 16}
 
 #: (UpAxis, UpAxisSign, FrontAxis, FrontAxisSign, CoordAxis, CoordAxisSign) of the two frames we write
 AXES = {"y": (1, 1, 2, 1, 0, 1), "z": (2, 1, 1, -1, 0, 1)}

@@ -316,21 +316,22 @@ def save_fbx(
     if pose_correctives and facts.posedirs is not None:
         features = (anim.rotations[:, 1:] - np.eye(3)).reshape(frames, -1)  # (T, 9 (J - 1)), row-major R - I
         for p in range(facts.posedirs.shape[0]):
-            joint, entry = anim.joint_names[1 + p // 9], p % 9
-            shapes.append((f"pose_{joint}_{entry // 3}{entry % 3}", facts.posedirs[p], features[:, p]))
+            joint, cell = anim.joint_names[1 + p // 9], p % 9
+            shapes.append((f"pose_{joint}_{cell // 3}{cell % 3}", facts.posedirs[p], features[:, p]))
         if progress is not None:
             progress(frames)
     elif facts.posedirs is not None:
         corrective = pose_corrective_error(model, anim)
         if progress is not None:
             progress(frames)
-        message = (
-            f"the {anim.model_type} model has pose-corrective blend shapes, which are not exported: the "
-            f"file differs from the model by up to {corrective * 1000:.1f} mm (pass pose_correctives=True "
-            "to export them as blend shapes keyed per frame)"
-        )
-        notes.append(message)
-        warn(message)
+        if corrective is not None:
+            message = (
+                f"the {anim.model_type} model has pose-corrective blend shapes, which are not exported: the "
+                f"file differs from the model by up to {corrective * 1000:.1f} mm (pass pose_correctives=True "
+                "to export them as blend shapes keyed per frame)"
+            )
+            notes.append(message)
+            warn(message)
 
     times = ktime(np.arange(frames) / anim.fps)
     stack_name = name or (Path(anim.source).stem if anim.source and not anim.source.startswith("<") else "motion")
@@ -432,4 +433,3 @@ def _limb(doc: Document, joint: str, translation: np.ndarray) -> int:
     attribute.add("TypeFlags", "Skeleton")
     doc.connect(attribute_id, bone_id)
     return bone_id
-
