@@ -3,9 +3,12 @@ at some frames (world space, converted back to SMPL's Y-up frame, metres), optio
 
 Run inside Blender::
 
-    blender -b --factory-startup --python-exit-code 1 -P fbx_blender_check.py -- FILE.fbx FRAME[,FRAME...] [OUT.png]
+    blender -b --factory-startup --python-exit-code 1 -P fbx_blender_check.py -- FILE.fbx FRAME[,FRAME...] \
+        [--png OUT.png] [--wide-sliders]
 
 Frames are the file's keys (the importer shifts them by its ``anim_offset``, 1 frame by default).
+``--wide-sliders`` widens every shape key's slider range to [-10, 10] after the import: Blender clamps a
+shape key's value to its slider range (0..1 by default), and keyed pose correctives go negative.
 """
 
 import json
@@ -25,8 +28,9 @@ def render(path, mesh_obj):
     scene = bpy.context.scene
     scene.render.engine = "BLENDER_WORKBENCH"
     scene.display.shading.light = "STUDIO"
-    scene.display.shading.color_type = "MATERIAL"
-    scene.render.resolution_x, scene.render.resolution_y = 480, 640
+    scene.display.shading.color_type = "SINGLE"
+    scene.display.shading.single_color = (0.8, 0.62, 0.52)
+    scene.render.resolution_x, scene.render.resolution_y = 420, 560
     scene.render.film_transparent = False
     scene.render.image_settings.file_format = "PNG"
     scene.render.image_settings.color_mode = "RGB"
@@ -41,7 +45,7 @@ def render(path, mesh_obj):
     cam_data.lens = 50
     cam = bpy.data.objects.new("cam", cam_data)
     scene.collection.objects.link(cam)
-    cam.location = center + mathutils.Vector((1.2, -3.2, 0.35)) * max(height, 1.0)
+    cam.location = center + mathutils.Vector((0.75, -2.0, 0.25)) * max(height, 1.0)
     cam.rotation_euler = (center - cam.location).to_track_quat("-Z", "Y").to_euler()
     scene.camera = cam
     scene.render.filepath = path
@@ -51,13 +55,16 @@ def render(path, mesh_obj):
 def main():
     argv = sys.argv[sys.argv.index("--") + 1 :]
     fbx, frames = argv[0], [int(k) for k in argv[1].split(",")]
-    png = argv[2] if len(argv) > 2 else None
+    png = argv[argv.index("--png") + 1] if "--png" in argv else None
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     bpy.ops.import_scene.fbx(filepath=fbx)
     mesh_obj = next(o for o in scene.objects if o.type == "MESH")
     arm = next(o for o in scene.objects if o.type == "ARMATURE")
     keys = mesh_obj.data.shape_keys
+    if "--wide-sliders" in argv and keys is not None:
+        for key in keys.key_blocks:
+            key.slider_min, key.slider_max = -10.0, 10.0
     out = {
         "version": bpy.app.version_string,
         "fps": scene.render.fps / scene.render.fps_base,

@@ -219,12 +219,12 @@ def test_rejects_bad_options(tmp_path, smpl):
         save_fbx(tmp_path / "bad.glb", smpl, params)
 
 
-def _blender(path: Path, frames: list[int], png: Path | None = None) -> dict:
+def _blender(path: Path, frames: list[int], *options: str) -> dict:
     exe = shutil.which("blender")
     if exe is None:
         pytest.skip("Blender is not installed (apt-get install blender)")
     command = [exe, "-b", "--factory-startup", "--python-exit-code", "1", "-P", str(HERE / "fbx_blender_check.py")]
-    command += ["--", str(path), ",".join(map(str, frames))] + ([str(png)] if png else [])
+    command += ["--", str(path), ",".join(map(str, frames)), *options]
     result = subprocess.run(command, capture_output=True, text=True, timeout=900)
     assert result.returncode == 0 and "\nJSON:" in result.stdout, (result.stdout[-2000:], result.stderr[-2000:])
     return json.loads(result.stdout.split("\nJSON:", 1)[1])
@@ -273,3 +273,51 @@ def test_command_line(tmp_path, capsys, smpl, fake_models):
     check_frames(got, smpl, motion, [0, 5], correctives=True)
     assert main(args + ["-o", str(tmp_path / "w.glb"), "--format", "fbx"]) == 2
     assert "--format fbx" in capsys.readouterr().err
+
+
+def test_a_z_up_motion_stands_up_and_keeps_an_upright_bind_pose(tmp_path, smpl):
+    motion = make_motion("smpl", seconds=0.3, fps=30.0, seed=10)
+    save_fbx(tmp_path / "amass.fbx", smpl, motion, input_up_axis="z")
+    got = read_with_ufbx(tmp_path / "amass.fbx", [0, 8])
+    rest_verts, _ = smpl.rest_pose(motion.betas[: smpl.num_betas])
+    np.testing.assert_allclose(got["rest_vertices"], rest_verts, atol=1e-6)  # upright in SMPL's frame
+    turn = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # the input's +Z -> +Y
+    for k in (0, 8):
+        verts, joints = forward(smpl, motion, k)
+        np.testing.assert_allclose(got[f"vertices_{k}"], verts @ turn.T, atol=TOL, rtol=0)
+    with pytest.raises(ValueError, match="input_up_axis"):
+        save_fbx(tmp_path / "bad.fbx", smpl, motion, input_up_axis="x")
+
+
+def test_dmpl_soft_tissue_is_keyed(tmp_path, fake_models):
+    from fakes_dmpl import dmpl_sequence, write_dmpl
+
+    model = smplcore.BodyModel(fake_models["smpl_neutral_pkl"], dmpl_path=write_dmpl(tmp_path))
+    frames = 6
+    rng = np.random.default_rng(11)
+    params = {"body_pose": rng.normal(0, 0.2, (frames, 69)), "dmpls": dmpl_sequence(frames)}
+    report = save_fbx(tmp_path / "d.fbx", model, params, pose_correctives=True)
+    assert report.morph_targets[:8] == [f"dmpl_{k}" for k in range(8)]
+    got = read_with_ufbx(tmp_path / "d.fbx", [0, 5])
+    shift = max(
+        (float(n.split("up to ")[1].split(" mm")[0]) / 1000 for n in report.warnings if "dmpls move" in n),
+        default=0.0,
+    )
+    for k in (0, 5):
+        np.testing.assert_allclose(got[f"blend_weights_{k}"][:8], params["dmpls"][k], atol=1e-5)
+        out = model(**{key: value[k : k + 1] for key, value in params.items()})
+        err = float(np.abs(got[f"vertices_{k}"] - np.asarray(out.vertices[0])).max())
+        assert err <= shift + TOL, f"frame {k}: {err * 1000:.4f} mm"
+
+
+def test_blender_plays_keyed_pose_correctives(tmp_path, smpl):
+    """With the shape keys' slider range widened (Blender clamps values to 0..1 by default), Blender's import
+    of a pose_correctives=True file reproduces the full model, correctives included."""
+    motion = make_motion("smpl", seconds=0.5, fps=30.0, seed=12)
+    save_fbx(tmp_path / "pc.fbx", smpl, motion, pose_correctives=True)
+    frames = [0, motion.num_frames - 1]
+    data = _blender(tmp_path / "pc.fbx", frames, "--wide-sliders")
+    assert len(data["shape_keys"]) == 1 + 9 * 23
+    for k in frames:
+        verts, _ = forward(smpl, motion, k, correctives=True)
+        np.testing.assert_allclose(data["vertices"][str(k)], verts, atol=TOL, rtol=0, err_msg=f"frame {k}")

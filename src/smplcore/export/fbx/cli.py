@@ -10,7 +10,7 @@ from smplcore.export.animation import Animation, ExportReport, Progress
 
 
 def add_fbx_options(parser: argparse.ArgumentParser) -> None:
-    """Add ``--fbx-unit``, ``--up-axis``, ``--root-bone`` and ``--pose-correctives`` to ``parser``."""
+    """Add ``--fbx-unit``, ``--up-axis``, ``--input-up-axis``, ``--root-bone`` and ``--pose-correctives``."""
     group = parser.add_argument_group(".fbx options")
     group.add_argument(
         "--fbx-unit",
@@ -24,6 +24,13 @@ def add_fbx_options(parser: argparse.ArgumentParser) -> None:
         choices=("y", "z"),
         default="y",
         help=".fbx: Y up (default, SMPL's frame; Unity, Maya) or Z up (Blender, Unreal, 3ds Max)",
+    )
+    group.add_argument(
+        "--input-up-axis",
+        choices=("y", "z"),
+        default="y",
+        help=".fbx: up axis of the input's world: y (default, SMPL's) or z (AMASS motions: the body then "
+        "stands up in the file)",
     )
     group.add_argument(
         "--root-bone",
@@ -50,6 +57,7 @@ def write_fbx(
         anim,
         unit=args.fbx_unit,
         up_axis=args.up_axis,
+        input_up_axis=args.input_up_axis,
         root_bone=args.root_bone,
         shape_keys=args.morph_targets,
         pose_correctives=args.pose_correctives,

@@ -119,6 +119,7 @@ def save_fbx(
     fps: float | None = None,
     unit: str = "cm",
     up_axis: str = "y",
+    input_up_axis: str = "y",
     root_bone: str | None = None,
     shape_keys: bool = False,
     pose_correctives: bool = False,
@@ -139,6 +140,9 @@ def save_fbx(
     unit : ``"cm"`` (default: values in centimetres, FBX's and Unreal's unit) or ``"m"`` (values in metres,
         ``UnitScaleFactor`` 100). Either imports at the same size in Blender, Unity and Unreal.
     up_axis : ``"y"`` (default: SMPL's frame) or ``"z"`` (the data rotated so +Z is up and the body faces -Y).
+    input_up_axis : the up axis of the input's world: ``"y"`` (default, SMPL's) or ``"z"`` (AMASS motions,
+        whose root orientation stands the body along +Z). With ``"z"`` the root's rotation and path are turned
+        so the body stands up in the file; the rest (bind) pose stays upright either way.
     root_bone : name of an extra bone at the origin above the pelvis (e.g. ``"root"``, Unreal's convention),
         or None.
     shape_keys : add the shape coefficients (at weight 0) and the expressions (animated) as blend shapes.
@@ -158,6 +162,8 @@ def save_fbx(
         raise ValueError(f"unit: expected 'cm' or 'm', got {unit!r}")
     if up_axis not in ("y", "z"):
         raise ValueError(f"up_axis: expected 'y' or 'z', got {up_axis!r}")
+    if input_up_axis not in ("y", "z"):
+        raise ValueError(f"input_up_axis: expected 'y' or 'z', got {input_up_axis!r}")
     order = str(rotation_order).upper()
     if order not in ROTATION_ORDERS:
         raise ValueError(f"rotation_order: expected one of {', '.join(ROTATION_ORDERS)}, got {rotation_order!r}")
@@ -312,6 +318,14 @@ def save_fbx(
         warn(message)
     if anim.dmpls is not None and facts.dmpldirs is not None:
         shapes += [(f"dmpl_{k}", facts.dmpldirs[:, :, k], anim.dmpls[:, k]) for k in range(anim.dmpls.shape[1])]
+        from smplcore.export.soft_tissue import dmpl_joint_shift
+
+        shift = dmpl_joint_shift(model, anim.dmpls)
+        if shift > 1e-6:
+            notes.append(
+                f"dmpls move the model's joints by up to {shift * 1000:.2f} mm; the exported skeleton uses the "
+                "joints without soft tissue"
+            )
     corrective = None
     if pose_correctives and facts.posedirs is not None:
         features = (anim.rotations[:, 1:] - np.eye(3)).reshape(frames, -1)  # (T, 9 (J - 1)), row-major R - I
@@ -369,10 +383,15 @@ def save_fbx(
             if keyed is not None:
                 _curves(doc, layer_id, channel_id, "DeformPercent", {"DeformPercent": 100.0 * keyed}, times)
 
-    # Skeleton animation: the axes change conjugates every local rotation
-    local = np.einsum("ab,tjbc,dc->tjad", axes, anim.rotations, axes)
+    # Skeleton animation: a Z-up input world turns the root; the file's axes conjugate every local rotation
+    rotations, root_path = anim.rotations, anim.root_positions
+    if input_up_axis == "z":
+        rotations = rotations.copy()
+        rotations[:, 0] = _Z_UP.T @ rotations[:, 0]
+        root_path = root_path @ _Z_UP
+    local = np.einsum("ab,tjbc,dc->tjad", axes, rotations, axes)
     angles = _euler_xyz(local, order)
-    root_path = place(anim.root_positions)
+    root_path = place(root_path)
     for j in range(anim.num_joints):
         channels = {axis: angles[:, j, k] for k, axis in enumerate("XYZ")}
         _curves(doc, layer_id, bone_ids[j], "Lcl Rotation", channels, times)
