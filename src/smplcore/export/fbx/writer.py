@@ -26,7 +26,6 @@ The file holds
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -44,37 +43,6 @@ __all__ = ["save_fbx", "ROTATION_ORDERS"]
 ROTATION_ORDERS = {"XYZ": 0, "XZY": 1, "YZX": 2, "YXZ": 3, "ZXY": 4, "ZYX": 5}
 _UNITS = {"cm": (100.0, 1.0), "m": (1.0, 100.0)}  # values per metre, UnitScaleFactor (cm per unit)
 _Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # +90 degrees about X: y -> z
-
-
-@dataclass(frozen=True)
-class _Facts:
-    """The model facts the FBX writer reads besides the animation (``model.rig`` fields)."""
-
-    shapedirs: np.ndarray  # (V, 3, S)
-    exprdirs: np.ndarray  # (V, 3, E)
-    posedirs: np.ndarray | None  # (9 (J - 1), V, 3)
-    dmpldirs: np.ndarray | None  # (V, 3, D)
-    uv: tuple[np.ndarray, np.ndarray] | None  # vt (T, 2), ft (F, 3)
-    skinning: str
-
-
-def _rig_of(model: Any) -> _Facts:
-    """Every read of model facts beyond :func:`prepare_animation` (one place, for the move to ``model.rig``)."""
-    from smplcore.export.uv import model_uv
-
-    setup = model.setup
-    posedirs = setup.data.posedirs
-    if posedirs is not None:
-        posedirs = np.asarray(posedirs, np.float64).transpose(2, 0, 1)
-    dmpl = getattr(setup, "dmpldirs", None)
-    return _Facts(
-        shapedirs=np.asarray(setup.shapedirs, np.float64),
-        exprdirs=np.asarray(setup.exprdirs, np.float64),
-        posedirs=posedirs,
-        dmpldirs=None if dmpl is None else np.asarray(dmpl, np.float64),
-        uv=model_uv(model),
-        skinning=str(getattr(model, "skinning", "lbs")),
-    )
 
 
 def _translate(t: np.ndarray) -> np.ndarray:
@@ -173,10 +141,12 @@ def save_fbx(
     anim = source if isinstance(source, Animation) else prepare_animation(model, source, fps=fps, progress=progress)
     if fps is not None and isinstance(source, Animation):
         anim = dataclasses.replace(anim, fps=float(fps))
-    facts = _rig_of(model)
-    if pose_correctives and facts.posedirs is None:
+    facts = model.rig  # the public model contract (smplcore.model.Rig): bases, UV map, skinning
+    posedirs = facts.posedirs if facts.has_pose_correctives else None
+    if pose_correctives and posedirs is None:
         raise ValueError(f"pose_correctives: the {anim.model_type} model has no pose-corrective blend shapes")
-    if uv and facts.uv is None:
+    uv_map = None if facts.uv is None else (facts.uv.vt, facts.uv.ft)
+    if uv and uv_map is None:
         raise ValueError(f"uv: the {anim.model_type} model has no UV map (vt/ft)")
     if root_bone is not None and root_bone in anim.joint_names:
         raise ValueError(f"root_bone: {root_bone!r} is already a joint of the {anim.model_type} model")
@@ -211,9 +181,8 @@ def save_fbx(
     layer_normal.add("ReferenceInformationType", "Direct")
     layer_normal.add("Normals", normals.reshape(-1))
     layer_types = ["LayerElementNormal"]
-    write_uv = facts.uv is not None and uv is not False
-    if write_uv and facts.uv is not None:
-        vt, ft = facts.uv
+    if uv_map is not None and uv is not False:
+        vt, ft = uv_map
         layer_uv = geometry.add("LayerElementUV", I32(0))
         layer_uv.add("Version", I32(101))
         layer_uv.add("Name", "UVMap")
@@ -327,14 +296,14 @@ def save_fbx(
                 "joints without soft tissue"
             )
     corrective = None
-    if pose_correctives and facts.posedirs is not None:
+    if pose_correctives and posedirs is not None:
         features = (anim.rotations[:, 1:] - np.eye(3)).reshape(frames, -1)  # (T, 9 (J - 1)), row-major R - I
-        for p in range(facts.posedirs.shape[0]):
+        for p in range(posedirs.shape[0]):
             joint, cell = anim.joint_names[1 + p // 9], p % 9
-            shapes.append((f"pose_{joint}_{cell // 3}{cell % 3}", facts.posedirs[p], features[:, p]))
+            shapes.append((f"pose_{joint}_{cell // 3}{cell % 3}", posedirs[p], features[:, p]))
         if progress is not None:
             progress(frames)
-    elif facts.posedirs is not None:
+    elif posedirs is not None:
         corrective = pose_corrective_error(model, anim)
         if progress is not None:
             progress(frames)
