@@ -94,6 +94,13 @@ def main():
         values, idx = hold(uv.values), hold(uv.indices)
         arrays["uv_values"] = np.array([[values[i].x, values[i].y] for i in range(len(values))])
         arrays["uv_indices"] = np.array([idx[i] for i in range(len(idx))], dtype=np.int64)
+    color_sets = items(mesh, "color_sets")
+    info["color_sets"] = [c.name for c in color_sets]
+    if color_sets:
+        color = hold(color_sets[0].vertex_color)
+        values, idx = hold(color.values), hold(color.indices)
+        rgba = [[values[i].x, values[i].y, values[i].z, values[i].w] for i in range(len(values))]
+        arrays["color_corners"] = np.array(rgba)[[idx[i] for i in range(len(idx))]]
     if channels:
         offsets = []
         for channel in channels:

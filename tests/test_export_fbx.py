@@ -17,7 +17,7 @@ import pytest
 
 import smplcore
 from export_helpers import make_motion, open_model, without_correctives
-from smplcore.export import ExportReport, save_fbx
+from smplcore.export import ExportReport, save_fbx, weight_colors
 from smplcore.export.fbx.binary import FOOTER_MAGIC, HEADER_MAGIC, I64, Node, encode_file
 
 HERE = Path(__file__).resolve().parent
@@ -168,7 +168,8 @@ def test_root_bone(tmp_path, smpl):
 def test_open_model_with_uvs(tmp_path):
     model = open_model()
     motion = make_motion("smpl", seconds=0.5, fps=30.0, seed=1)
-    report = save_fbx(tmp_path / "open.fbx", model, motion)
+    colors = weight_colors(model.skinning_weights)
+    report = save_fbx(tmp_path / "open.fbx", model, motion, vertex_colors=colors)
     assert report.pose_corrective_max is None and not report.warnings and report.num_vertices == 13380
     got = read_with_ufbx(tmp_path / "open.fbx", [0, 14])
     check_frames(got, model, motion, [0, 14])
@@ -177,6 +178,9 @@ def test_open_model_with_uvs(tmp_path):
     # ufbx's UV of every face corner is the model's: no seam splitting needed in FBX
     corners = np.asarray(vt)[np.asarray(ft).reshape(-1)]
     np.testing.assert_allclose(got["uv_values"][got["uv_indices"]], corners, atol=1e-9)
+    assert got["info"]["color_sets"] == ["Col"]
+    rgba = np.c_[colors, np.full(len(colors), 255)][np.asarray(model.faces).reshape(-1)] / 255.0
+    np.testing.assert_allclose(got["color_corners"], rgba, atol=1e-9)
     with pytest.raises(ValueError, match="no pose-corrective"):
         save_fbx(tmp_path / "x.fbx", model, motion, pose_correctives=True)
 
@@ -258,13 +262,15 @@ def test_command_line(tmp_path, capsys, smpl, fake_models):
     path = save_motion(motion, tmp_path / "walk.npz")
     model_path = str(fake_models["smpl_neutral_pkl"])
     args = ["export", str(path), "--model-path", model_path, "--num-betas", "10", "--no-progress"]
-    assert main(args + ["-o", str(tmp_path / "w.fbx"), "--up-axis", "z", "--root-bone", "root", "--morph-targets"]) == 0
+    fbx_options = ["--up-axis", "z", "--root-bone", "root", "--morph-targets", "--colors", "weights"]
+    assert main(args + ["-o", str(tmp_path / "w.fbx"), *fbx_options]) == 0
     printed = capsys.readouterr()
     assert "(fbx," in printed.out and "12 frame(s) at 30 fps, 25 joints" in printed.out
     assert "pose-corrective" in printed.out  # what the file does not hold is said
     got = read_with_ufbx(tmp_path / "w.fbx", [0, 5])
     assert got["info"]["up"] == 4 and got["info"]["parents"]["pelvis"] == "root"
     assert got["info"]["blend_channels"] == [f"beta_{k}" for k in range(10)]
+    assert got["info"]["color_sets"] == ["Col"]
     check_frames(got, smpl, motion, [0, 5])
     # --format picks the writer (a suffix-less OUT gets it); --pose-correctives gives the exact body
     assert main(args + ["-o", str(tmp_path / "exact"), "--format", "fbx", "--pose-correctives", "--fbx-unit", "m"]) == 0
@@ -321,3 +327,22 @@ def test_blender_plays_keyed_pose_correctives(tmp_path, smpl):
     for k in frames:
         verts, _ = forward(smpl, motion, k, correctives=True)
         np.testing.assert_allclose(data["vertices"][str(k)], verts, atol=TOL, rtol=0, err_msg=f"frame {k}")
+
+
+def test_dual_quaternion_skinning_is_declared_and_evaluated_by_ufbx(tmp_path):
+    model = open_model(skinning="dqs")
+    motion = make_motion("smpl", seconds=0.4, fps=30.0, seed=3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the SMPL betas drive the open model's shape space
+        save_fbx(tmp_path / "dq.fbx", model, motion)
+    got = read_with_ufbx(tmp_path / "dq.fbx", [0, 10])
+    assert got["info"]["skinning_method"] == 2  # ufbx's SkinningMethod.DUAL_QUATERNION
+    lbs = open_model()
+    params = motion.model_params(model.model_type, model.skeleton_joint_names)
+    for k in (0, 10):
+        one = {key: v[k : k + 1] if key != "betas" else v for key, v in params.items()}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            dqs, plain = model(**one).vertices[0], lbs(**one).vertices[0]
+        np.testing.assert_allclose(got[f"vertices_{k}"], dqs, atol=TOL, rtol=0)
+        assert k == 0 or np.abs(got[f"vertices_{k}"] - plain).max() > 10 * TOL  # and it is not LBS

@@ -103,7 +103,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--colors",
         choices=("none", "weights"),
         default="none",
-        help=".obj/.ply/.glb: per-vertex colours from the skinning weights (default: none)",
+        help=".obj/.ply/.glb/.fbx: per-vertex colours from the skinning weights (default: none)",
     )
     parser.add_argument(
         "--texture",

@@ -49,6 +49,7 @@ def write_fbx(
     args: argparse.Namespace, out: Path, model: Any, anim: Animation, progress: Progress | None = None
 ) -> ExportReport:
     """Run :func:`smplcore.export.save_fbx` with the command's options (``--morph-targets``: shape keys)."""
+    from smplcore.export import weight_colors
     from smplcore.export.fbx import save_fbx
 
     return save_fbx(
@@ -61,5 +62,6 @@ def write_fbx(
         root_bone=args.root_bone,
         shape_keys=args.morph_targets,
         pose_correctives=args.pose_correctives,
+        vertex_colors=weight_colors(anim.weights) if args.colors == "weights" else None,
         progress=progress,
     )

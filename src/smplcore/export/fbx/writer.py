@@ -92,6 +92,7 @@ def save_fbx(
     shape_keys: bool = False,
     pose_correctives: bool = False,
     uv: bool | None = None,
+    vertex_colors: Any = None,
     rotation_order: str = "XYZ",
     name: str | None = None,
     progress: Progress | None = None,
@@ -117,6 +118,8 @@ def save_fbx(
     pose_correctives : add the model's pose-corrective blend shapes, one per entry of ``R - I`` of every
         joint but the root, with weights keyed per frame: the skinned file then equals the full model.
     uv : write the model's UV map (default: whenever it has one).
+    vertex_colors : optional (V, 3|4) colours (floats in [0, 1] or uint8), written as ``LayerElementColor``,
+        e.g. :func:`smplcore.export.weight_colors` of the skinning weights.
     rotation_order : Euler order of the rotation curves, one of :data:`ROTATION_ORDERS` (FBX's meaning: the
         first axis is applied first).
     name : name of the animation stack (default: the input file's stem, or ``"motion"``).
@@ -191,6 +194,18 @@ def save_fbx(
         layer_uv.add("UV", np.asarray(vt, np.float64).reshape(-1))
         layer_uv.add("UVIndex", np.asarray(ft, np.int32).reshape(-1))
         layer_types.append("LayerElementUV")
+    if vertex_colors is not None:
+        from smplcore.export.mesh import _check_vertex_colors
+
+        rgba = _check_vertex_colors(vertex_colors, num_verts).astype(np.float64) / 255.0
+        layer_color = geometry.add("LayerElementColor", I32(0))
+        layer_color.add("Version", I32(101))
+        layer_color.add("Name", "Col")
+        layer_color.add("MappingInformationType", "ByPolygonVertex")
+        layer_color.add("ReferenceInformationType", "IndexToDirect")
+        layer_color.add("Colors", rgba.reshape(-1))
+        layer_color.add("ColorIndex", faces.astype(np.int32).reshape(-1))
+        layer_types.append("LayerElementColor")
     layer_material = geometry.add("LayerElementMaterial", I32(0))
     layer_material.add("Version", I32(101))
     layer_material.add("Name", "")
