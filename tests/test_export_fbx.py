@@ -234,6 +234,7 @@ def _blender(path: Path, frames: list[int], *options: str) -> dict:
     return json.loads(result.stdout.split("\nJSON:", 1)[1])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("unit,up", [("cm", "y"), ("m", "z")])
 def test_blender_imports_the_fbx(tmp_path, smpl, unit, up):
     """Blender's own FBX importer: armature, weights as vertex groups, shape keys, and the posed mesh."""
@@ -316,6 +317,7 @@ def test_dmpl_soft_tissue_is_keyed(tmp_path, fake_models):
         assert err <= shift + TOL, f"frame {k}: {err * 1000:.4f} mm"
 
 
+@pytest.mark.slow
 def test_blender_plays_keyed_pose_correctives(tmp_path, smpl):
     """With the shape keys' slider range widened (Blender clamps values to 0..1 by default), Blender's import
     of a pose_correctives=True file reproduces the full model, correctives included."""
