@@ -34,8 +34,20 @@ import numpy as np
 from smplcore.errors import warn
 from smplcore.export.animation import Animation, ExportReport, Progress, pose_corrective_error, prepare_animation
 from smplcore.export.bvh import euler_angles
-from smplcore.export.fbx.binary import I32, I64, write_file
-from smplcore.export.fbx.document import Document, ktime, matrix, properties70
+from smplcore.export.fbx.binary import write_file
+from smplcore.export.fbx.document import Document, ktime
+from smplcore.export.fbx.objects import (
+    Shape,
+    add_animation_stack,
+    add_blend_shapes,
+    add_curves,
+    add_mesh,
+    add_skeleton,
+    add_skin,
+)
+from smplcore.export.gltf import _version, _vertex_normals
+from smplcore.export.mesh import _check_vertex_colors
+from smplcore.export.soft_tissue import dmpl_joint_shift
 
 __all__ = ["save_fbx", "ROTATION_ORDERS"]
 
@@ -43,31 +55,6 @@ __all__ = ["save_fbx", "ROTATION_ORDERS"]
 ROTATION_ORDERS = {"XYZ": 0, "XZY": 1, "YZX": 2, "YXZ": 3, "ZXY": 4, "ZYX": 5}
 _UNITS = {"cm": (100.0, 1.0), "m": (1.0, 100.0)}  # values per metre, UnitScaleFactor (cm per unit)
 _Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # +90 degrees about X: y -> z
-
-
-def _translate(t: np.ndarray) -> np.ndarray:
-    m = np.eye(4)
-    m[:3, 3] = t
-    return m
-
-
-def _curves(doc: Document, layer: int, target: int, prop: str, channels: dict[str, np.ndarray], times) -> None:
-    """An AnimationCurveNode on ``target``'s ``prop`` with one linear curve per channel (values (T,))."""
-    short = {"Lcl Translation": "T", "Lcl Rotation": "R", "DeformPercent": "DeformPercent"}[prop]
-    node_id, node = doc.new("AnimationCurveNode", short, "AnimCurveNode", "")
-    properties70(node, *((f"d|{c}", "Number", "", "A", float(v[0])) for c, v in channels.items()))
-    doc.connect(node_id, layer)
-    doc.connect(node_id, target, prop)
-    for channel, values in channels.items():
-        curve_id, curve = doc.new("AnimationCurve", "", "AnimCurve", "")
-        curve.add("Default", float(values[0]))
-        curve.add("KeyVer", I32(4009))
-        curve.add("KeyTime", times)
-        curve.add("KeyValueFloat", np.asarray(values, np.float32))
-        curve.add("KeyAttrFlags", np.array([0x4], np.int32))  # linear interpolation
-        curve.add("KeyAttrDataFloat", np.zeros(4, np.float32))
-        curve.add("KeyAttrRefCount", np.array([len(values)], np.int32))
-        doc.connect(curve_id, node_id, f"d|{channel}")
 
 
 def _euler_xyz(rotations: np.ndarray, order: str) -> np.ndarray:
@@ -163,127 +150,73 @@ def save_fbx(
 
     doc = Document()
     body = f"{anim.model_type}_body"
-    num_verts = anim.rest_vertices.shape[0]
     faces = np.asarray(anim.faces, np.int64)
-
-    # Mesh
-    geometry_id, geometry = doc.new("Geometry", body, "Geometry", "Mesh")
-    properties70(geometry)
-    geometry.add("GeometryVersion", I32(124))
-    geometry.add("Vertices", place(anim.rest_vertices).reshape(-1))
-    polygons = faces.astype(np.int32).copy()
-    polygons[:, -1] = -polygons[:, -1] - 1
-    geometry.add("PolygonVertexIndex", polygons.reshape(-1))
-    from smplcore.export.gltf import _vertex_normals
-
     normals = _vertex_normals(anim.rest_vertices, faces).astype(np.float64) @ axes.T
-    layer_normal = geometry.add("LayerElementNormal", I32(0))
-    layer_normal.add("Version", I32(101))
-    layer_normal.add("Name", "")
-    layer_normal.add("MappingInformationType", "ByVertice")
-    layer_normal.add("ReferenceInformationType", "Direct")
-    layer_normal.add("Normals", normals.reshape(-1))
-    layer_types = ["LayerElementNormal"]
-    if uv_map is not None and uv is not False:
-        vt, ft = uv_map
-        layer_uv = geometry.add("LayerElementUV", I32(0))
-        layer_uv.add("Version", I32(101))
-        layer_uv.add("Name", "UVMap")
-        layer_uv.add("MappingInformationType", "ByPolygonVertex")
-        layer_uv.add("ReferenceInformationType", "IndexToDirect")
-        layer_uv.add("UV", np.asarray(vt, np.float64).reshape(-1))
-        layer_uv.add("UVIndex", np.asarray(ft, np.int32).reshape(-1))
-        layer_types.append("LayerElementUV")
+    colors = None
     if vertex_colors is not None:
-        from smplcore.export.mesh import _check_vertex_colors
-
-        rgba = _check_vertex_colors(vertex_colors, num_verts).astype(np.float64) / 255.0
-        layer_color = geometry.add("LayerElementColor", I32(0))
-        layer_color.add("Version", I32(101))
-        layer_color.add("Name", "Col")
-        layer_color.add("MappingInformationType", "ByPolygonVertex")
-        layer_color.add("ReferenceInformationType", "IndexToDirect")
-        layer_color.add("Colors", rgba.reshape(-1))
-        layer_color.add("ColorIndex", faces.astype(np.int32).reshape(-1))
-        layer_types.append("LayerElementColor")
-    layer_material = geometry.add("LayerElementMaterial", I32(0))
-    layer_material.add("Version", I32(101))
-    layer_material.add("Name", "")
-    layer_material.add("MappingInformationType", "AllSame")
-    layer_material.add("ReferenceInformationType", "IndexToDirect")
-    layer_material.add("Materials", np.zeros(1, np.int32))
-    layer_types.append("LayerElementMaterial")
-    layer = geometry.add("Layer", I32(0))
-    layer.add("Version", I32(100))
-    for kind in layer_types:
-        element = layer.add("LayerElement")
-        element.add("Type", kind)
-        element.add("TypedIndex", I32(0))
-
-    mesh_id, mesh = doc.new("Model", body, "Model", "Mesh")
-    mesh.add("Version", I32(232))
-    properties70(mesh, ("DefaultAttributeIndex", "int", "Integer", "", I32(0)))
-    mesh.add("Shading", True)
-    mesh.add("Culling", "CullingOff")
-    doc.connect(mesh_id, 0)
-    doc.connect(geometry_id, mesh_id)
-    material_id, material = doc.new("Material", "body", "Material", "")
-    material.add("Version", I32(102))
-    material.add("ShadingModel", "phong")
-    material.add("MultiLayer", I32(0))
-    properties70(
-        material,
-        ("DiffuseColor", "Color", "", "A", 0.8, 0.72, 0.66),
-        ("SpecularFactor", "Number", "", "A", 0.1),
-    )
-    doc.connect(material_id, mesh_id)
-
-    # Skeleton
-    rest_joints = anim.rest_joints
-    bone_ids: list[int] = []
-    root_id = None
-    if root_bone is not None:
-        root_id = _limb(doc, root_bone, np.zeros(3))
-        doc.connect(root_id, 0)
-    offsets = anim.offsets
-    for j, joint in enumerate(anim.joint_names):
-        bone_ids.append(_limb(doc, joint, place(offsets[j])))
-        parent = int(anim.parents[j])
-        doc.connect(bone_ids[j], bone_ids[parent] if parent >= 0 else (root_id if root_id is not None else 0))
-
-    # Skin: every non-zero weight; bind = rest (translation only)
-    skin_id, skin = doc.new("Deformer", body, "Deformer", "Skin")
-    skin.add("Version", I32(101))
-    skin.add("Link_DeformAcuracy", 50.0)
-    skin.add("SkinningType", "DualQuaternion" if facts.skinning == "dqs" else "Linear")
-    doc.connect(skin_id, geometry_id)
+        colors = _check_vertex_colors(vertex_colors, anim.rest_vertices.shape[0]).astype(np.float64) / 255.0
+    mesh = add_mesh(doc, body, place(anim.rest_vertices), faces, normals, uv_map if uv is not False else None, colors)
+    bones = add_skeleton(doc, anim.joint_names, anim.parents, place(anim.offsets), root_bone, ROTATION_ORDERS[order])
     weights = np.asarray(anim.weights, np.float64)
-    bind_world = [_translate(place(rest_joints[j])) for j in range(anim.num_joints)]
-    for j, joint in enumerate(anim.joint_names):
-        cluster_id, cluster = doc.new("Deformer", joint, "SubDeformer", "Cluster")
-        cluster.add("Version", I32(100))
-        cluster.add("UserData", "", "")
-        rows = np.flatnonzero(weights[:, j] > 0)
-        cluster.add("Indexes", rows.astype(np.int32))
-        cluster.add("Weights", weights[rows, j])
-        cluster.add("Transform", matrix(np.linalg.inv(bind_world[j])))
-        cluster.add("TransformLink", matrix(bind_world[j]))
-        doc.connect(cluster_id, skin_id)
-        doc.connect(bone_ids[j], cluster_id)
-    pose_id, pose = doc.new("Pose", body, "Pose", "BindPose")
-    pose.add("Type", "BindPose")
-    pose.add("Version", I32(100))
-    bound = [(mesh_id, np.eye(4))] + ([(root_id, np.eye(4))] if root_id is not None else [])
-    bound += list(zip(bone_ids, bind_world, strict=True))
-    pose.add("NbPoseNodes", I32(len(bound)))
-    for node_id, world in bound:
-        entry = pose.add("PoseNode")
-        entry.add("Node", _id(node_id))
-        entry.add("Matrix", matrix(world))
+    add_skin(doc, body, mesh, bones, anim.joint_names, weights, place(anim.rest_joints), facts.skinning == "dqs")
 
-    # Blend shapes: name, (V, 3) offsets in metres, weights per frame (T,) or None (constant 0)
-    frames = anim.num_frames
-    shapes: list[tuple[str, np.ndarray, np.ndarray | None]] = []
+    shapes, corrective = _blend_shapes(model, anim, facts, shape_keys, posedirs if pose_correctives else None, notes)
+    if progress is not None and posedirs is not None:
+        progress(anim.num_frames)  # the correctives keyed or measured
+    times = ktime(np.arange(anim.num_frames) / anim.fps)
+    stop = int(times[-1])
+    stack_name = name or (Path(anim.source).stem if anim.source and not anim.source.startswith("<") else "motion")
+    layer = add_animation_stack(doc, stack_name, stop)
+    if shapes:
+        placed = [(shape_name, place(offsets), keyed) for shape_name, offsets, keyed in shapes]
+        add_blend_shapes(doc, body, mesh[1], layer, placed, times)
+
+    # Skeleton animation: a Z-up input world turns the root; the file's axes conjugate every local rotation
+    rotations, root_path = anim.rotations, anim.root_positions
+    if input_up_axis == "z":
+        rotations = rotations.copy()
+        rotations[:, 0] = _Z_UP.T @ rotations[:, 0]
+        root_path = root_path @ _Z_UP
+    angles = _euler_xyz(np.einsum("ab,tjbc,dc->tjad", axes, rotations, axes), order)
+    root_path = place(root_path)
+    bone_ids = bones[0]
+    for j in range(anim.num_joints):
+        channels = {axis: angles[:, j, k] for k, axis in enumerate("XYZ")}
+        add_curves(doc, layer, bone_ids[j], "Lcl Rotation", channels, times)
+    add_curves(doc, layer, bone_ids[0], "Lcl Translation", {a: root_path[:, k] for k, a in enumerate("XYZ")}, times)
+    if progress is not None:
+        progress(anim.num_frames)
+
+    nodes = doc.nodes(
+        creator=f"smplcore {_version()} FBX writer",
+        up_axis=up_axis,
+        unit_scale=unit_scale,
+        fps=anim.fps,
+        stop=stop,
+        take=stack_name,
+    )
+    write_file(path, nodes)
+    return ExportReport(
+        path=path,
+        format="fbx",
+        num_frames=anim.num_frames,
+        fps=anim.fps,
+        num_joints=anim.num_joints + (root_bone is not None),
+        num_vertices=anim.rest_vertices.shape[0],
+        file_size=path.stat().st_size,
+        max_model_influences=int((weights > 0).sum(axis=1).max()),
+        pose_corrective_max=corrective,
+        morph_targets=[s[0] for s in shapes],
+        warnings=notes,
+    )
+
+
+def _blend_shapes(
+    model: Any, anim: Animation, facts: Any, shape_keys: bool, posedirs: np.ndarray | None, notes: list[str]
+) -> tuple[list[Shape], float | None]:
+    """The blend shapes to write (offsets in metres, SMPL's frame) and, when the model has pose correctives
+    that are not written (``posedirs`` None), how far they move the body; notes what is left out."""
+    shapes: list[Shape] = []
     if shape_keys:
         shapes += [(f"beta_{k}", facts.shapedirs[:, :, k], None) for k in range(facts.shapedirs.shape[2])]
         if anim.expression is not None and anim.base_expression is not None and facts.exprdirs.shape[2]:
@@ -302,137 +235,27 @@ def save_fbx(
         warn(message)
     if anim.dmpls is not None and facts.dmpldirs is not None:
         shapes += [(f"dmpl_{k}", facts.dmpldirs[:, :, k], anim.dmpls[:, k]) for k in range(anim.dmpls.shape[1])]
-        from smplcore.export.soft_tissue import dmpl_joint_shift
-
         shift = dmpl_joint_shift(model, anim.dmpls)
         if shift > 1e-6:
             notes.append(
                 f"dmpls move the model's joints by up to {shift * 1000:.2f} mm; the exported skeleton uses the "
                 "joints without soft tissue"
             )
-    corrective = None
-    if pose_correctives and posedirs is not None:
-        features = (anim.rotations[:, 1:] - np.eye(3)).reshape(frames, -1)  # (T, 9 (J - 1)), row-major R - I
+    if posedirs is not None:
+        features = (anim.rotations[:, 1:] - np.eye(3)).reshape(anim.num_frames, -1)  # (T, 9 (J - 1)): R - I
         for p in range(posedirs.shape[0]):
             joint, cell = anim.joint_names[1 + p // 9], p % 9
             shapes.append((f"pose_{joint}_{cell // 3}{cell % 3}", posedirs[p], features[:, p]))
-        if progress is not None:
-            progress(frames)
-    elif posedirs is not None:
-        corrective = pose_corrective_error(model, anim)
-        if progress is not None:
-            progress(frames)
-        if corrective is not None:
-            message = (
-                f"the {anim.model_type} model has pose-corrective blend shapes, which are not exported: the "
-                f"file differs from the model by up to {corrective * 1000:.1f} mm (pass pose_correctives=True "
-                "to export them as blend shapes keyed per frame)"
-            )
-            notes.append(message)
-            warn(message)
-
-    times = ktime(np.arange(frames) / anim.fps)
-    stack_name = name or (Path(anim.source).stem if anim.source and not anim.source.startswith("<") else "motion")
-    stack_id, stack = doc.new("AnimationStack", stack_name, "AnimStack", "")
-    stop = int(times[-1])
-    properties70(
-        stack,
-        ("LocalStart", "KTime", "Time", "", _id(0)),
-        ("LocalStop", "KTime", "Time", "", _id(stop)),
-        ("ReferenceStart", "KTime", "Time", "", _id(0)),
-        ("ReferenceStop", "KTime", "Time", "", _id(stop)),
-    )
-    layer_id, _ = doc.new("AnimationLayer", "BaseLayer", "AnimLayer", "")
-    doc.connect(layer_id, stack_id)
-
-    if shapes:
-        blend_id, blend = doc.new("Deformer", body, "Deformer", "BlendShape")
-        blend.add("Version", I32(100))
-        doc.connect(blend_id, geometry_id)
-        for shape_name, offsets_m, keyed in shapes:
-            delta = place(offsets_m)
-            rows = np.flatnonzero(np.any(delta != 0, axis=1))
-            shape_id, shape = doc.new("Geometry", shape_name, "Geometry", "Shape")
-            shape.add("Version", I32(100))
-            shape.add("Indexes", rows.astype(np.int32))
-            shape.add("Vertices", delta[rows].reshape(-1))
-            channel_id, channel = doc.new("Deformer", shape_name, "SubDeformer", "BlendShapeChannel")
-            channel.add("Version", I32(100))
-            first = 0.0 if keyed is None else float(keyed[0]) * 100.0
-            channel.add("DeformPercent", first)
-            channel.add("FullWeights", np.array([100.0]))
-            properties70(channel, ("DeformPercent", "Number", "", "A", first))
-            doc.connect(channel_id, blend_id)
-            doc.connect(shape_id, channel_id)
-            if keyed is not None:
-                _curves(doc, layer_id, channel_id, "DeformPercent", {"DeformPercent": 100.0 * keyed}, times)
-
-    # Skeleton animation: a Z-up input world turns the root; the file's axes conjugate every local rotation
-    rotations, root_path = anim.rotations, anim.root_positions
-    if input_up_axis == "z":
-        rotations = rotations.copy()
-        rotations[:, 0] = _Z_UP.T @ rotations[:, 0]
-        root_path = root_path @ _Z_UP
-    local = np.einsum("ab,tjbc,dc->tjad", axes, rotations, axes)
-    angles = _euler_xyz(local, order)
-    root_path = place(root_path)
-    for j in range(anim.num_joints):
-        channels = {axis: angles[:, j, k] for k, axis in enumerate("XYZ")}
-        _curves(doc, layer_id, bone_ids[j], "Lcl Rotation", channels, times)
-    _curves(doc, layer_id, bone_ids[0], "Lcl Translation", {a: root_path[:, k] for k, a in enumerate("XYZ")}, times)
-    if progress is not None:
-        progress(frames)
-    if order != "XYZ":
-        for node in doc.objects:
-            if node.name == "Model" and node.props[2] == "LimbNode":
-                block = node.find("Properties70")
-                if block is not None:
-                    block.add("P", "RotationOrder", "enum", "", "", I32(ROTATION_ORDERS[order]))
-
-    from smplcore.export.gltf import _version
-
-    nodes = doc.nodes(
-        creator=f"smplcore {_version()} FBX writer",
-        up_axis=up_axis,
-        unit_scale=unit_scale,
-        fps=anim.fps,
-        stop=stop,
-        take=stack_name,
-    )
-    write_file(path, nodes)
-    return ExportReport(
-        path=path,
-        format="fbx",
-        num_frames=frames,
-        fps=anim.fps,
-        num_joints=anim.num_joints + (root_bone is not None),
-        num_vertices=num_verts,
-        file_size=path.stat().st_size,
-        max_model_influences=int((weights > 0).sum(axis=1).max()),
-        pose_corrective_max=corrective,
-        morph_targets=[s[0] for s in shapes],
-        warnings=notes,
-    )
-
-
-def _id(value: int) -> I64:
-    return I64(int(value))
-
-
-def _limb(doc: Document, joint: str, translation: np.ndarray) -> int:
-    """A LimbNode model (and its node attribute) at ``translation`` from its parent; returns its id."""
-    bone_id, bone = doc.new("Model", joint, "Model", "LimbNode")
-    bone.add("Version", I32(232))
-    properties70(
-        bone,
-        ("InheritType", "enum", "", "", I32(1)),
-        ("DefaultAttributeIndex", "int", "Integer", "", I32(0)),
-        ("Lcl Translation", "Lcl Translation", "", "A", *map(float, translation)),
-    )
-    bone.add("Shading", True)
-    bone.add("Culling", "CullingOff")
-    attribute_id, attribute = doc.new("NodeAttribute", joint, "NodeAttribute", "LimbNode")
-    properties70(attribute, ("Size", "double", "Number", "", 1.0))
-    attribute.add("TypeFlags", "Skeleton")
-    doc.connect(attribute_id, bone_id)
-    return bone_id
+        return shapes, None
+    if not facts.has_pose_correctives:
+        return shapes, None
+    corrective = pose_corrective_error(model, anim)
+    if corrective is not None:
+        message = (
+            f"the {anim.model_type} model has pose-corrective blend shapes, which are not exported: the "
+            f"file differs from the model by up to {corrective * 1000:.1f} mm (pass pose_correctives=True "
+            "to export them as blend shapes keyed per frame)"
+        )
+        notes.append(message)
+        warn(message)
+    return shapes, corrective
