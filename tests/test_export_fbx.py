@@ -18,7 +18,7 @@ import pytest
 import smplcore
 from export_helpers import make_motion, open_model, without_correctives
 from smplcore.export import ExportReport, save_fbx, weight_colors
-from smplcore.export.fbx.binary import FOOTER_MAGIC, HEADER_MAGIC, I64, Node, encode_file
+from smplcore.export.fbx.binary import FILE_ID, FOOTER_ID, FOOTER_MAGIC, HEADER_MAGIC, I64, Node, encode_file
 
 HERE = Path(__file__).resolve().parent
 pytestmark = pytest.mark.filterwarnings("ignore:.*pose-corrective.*:UserWarning")
@@ -85,9 +85,11 @@ def test_container_header_and_footer(tmp_path):
     assert data.startswith(HEADER_MAGIC) and data[23:27] == (7400).to_bytes(4, "little")
     assert data.endswith(FOOTER_MAGIC) and len(data) % 16 == 0
     assert int.from_bytes(data[-144:-140], "little") == 0 and int.from_bytes(data[-140:-136], "little") == 7400
-    # the first record ends where the second begins
+    # the first record ends where the second begins; the second's end is followed by the null record, the footer id
     first_end = int.from_bytes(data[27:31], "little")
     assert data[first_end + 13 : first_end + 13 + 7] == b"Objects"
+    second_end = int.from_bytes(data[first_end : first_end + 4], "little")
+    assert data[second_end : second_end + 13] == b"\x00" * 13 and data[second_end + 13 : second_end + 29] == FOOTER_ID
     with pytest.raises(TypeError, match="no FBX property type"):
         encode_file([Node("Bad", [object()])])
     with pytest.raises(TypeError, match="FBX arrays"):
@@ -113,6 +115,7 @@ def test_ufbx_reads_the_settings_skeleton_and_skin(smpl_fbx, smpl):
     np.testing.assert_allclose(got["weights"][:, order], smpl.skinning_weights, atol=1e-12)  # every weight, unrounded
     assert info["stack"] == "motion" and info["time_end"] == pytest.approx((motion.num_frames - 1) / 30)
     assert isinstance(report, ExportReport) and report.format == "fbx" and report.file_size == path.stat().st_size
+    assert FILE_ID in path.read_bytes() and b"1970-01-01 10:00:00:000" in path.read_bytes()  # the known-working trio
 
 
 def test_ufbx_evaluates_the_model_at_several_frames(smpl_fbx, smpl):
@@ -348,3 +351,14 @@ def test_dual_quaternion_skinning_is_declared_and_evaluated_by_ufbx(tmp_path):
             dqs, plain = model(**one).vertices[0], lbs(**one).vertices[0]
         np.testing.assert_allclose(got[f"vertices_{k}"], dqs, atol=TOL, rtol=0)
         assert k == 0 or np.abs(got[f"vertices_{k}"] - plain).max() > 10 * TOL  # and it is not LBS
+
+
+def test_single_parameter_set(tmp_path, smpl):
+    rng = np.random.default_rng(13)
+    params = {"betas": rng.normal(size=10), "body_pose": rng.normal(0, 0.3, 69), "transl": [0.1, 0.2, 0.3]}
+    report = save_fbx(tmp_path / "one.fbx", smpl, params, name="pose")
+    assert report.num_frames == 1
+    got = read_with_ufbx(tmp_path / "one.fbx", [0])
+    assert got["info"]["stack"] == "pose" and got["info"]["time_end"] == 0.0
+    out = without_correctives(smpl)(**{k: np.asarray(v)[None] for k, v in params.items()})
+    np.testing.assert_allclose(got["vertices_0"], out.vertices[0], atol=TOL, rtol=0)

@@ -1,6 +1,6 @@
 """The FBX binary container (version 7.4): a tree of node records, written from the public description of
 the layout (Blender Foundation's "FBX binary file format specification", 2013, public domain; fbxcel's
-and the fbx-book's notes on the footer).
+and the fbx-book's notes on the footer; the known-working id trio documented by other writers).
 
 File = 27-byte header (``b"Kaydara FBX Binary  \\x00\\x1a\\x00"`` + uint32 version) | top-level node records |
 a 13-byte null record | footer. A node record (versions < 7500) is::
@@ -29,14 +29,19 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Node", "I16", "I32", "I64", "F32", "encode_file", "write_file", "HEADER_MAGIC", "FOOTER_MAGIC"]
+__all__ = ["Node", "I16", "I32", "I64", "F32", "encode_file", "write_file", "HEADER_MAGIC", "FOOTER_MAGIC", "FILE_ID"]
 
 VERSION = 7400
 HEADER_MAGIC = b"Kaydara FBX Binary  \x00\x1a\x00"
 #: the fixed last 16 bytes of the footer
 FOOTER_MAGIC = bytes.fromhex("f85a8c6adef5d97eece90ce3758f290b")
-#: the first 16 bytes of the footer: files from the FBX SDK have these upper nibbles (the rest varies)
-_FOOTER_ID = bytes.fromhex("f0b0a000d0c0d060b070f08010f02070")
+#: The first 16 bytes of the footer. The FBX SDK derives them (and the header's ``FileId``) from the file's
+#: ``CreationTime``, and its readers can refuse a file whose three disagree; nobody outside Autodesk knows the
+#: derivation, so independent writers use one known-working trio: this id, :data:`FILE_ID` and
+#: :data:`CREATION_TIME`.
+FOOTER_ID = bytes.fromhex("fabcab09d0c8d466b176fb831cf7267e")
+FILE_ID = bytes.fromhex("28b32aebb624ccc2bfc8b02aa92bfcf1")
+CREATION_TIME = "1970-01-01 10:00:00:000"
 _NULL_RECORD = b"\x00" * 13
 #: arrays at least this long (in bytes) are stored zlib-compressed
 _COMPRESS_FROM = 128
@@ -139,8 +144,8 @@ def encode_file(nodes: Iterable[Node], version: int = VERSION) -> bytes:
     for node in nodes:
         _encode_node(node, out)
     out += _NULL_RECORD
-    out += _FOOTER_ID
-    out += b"\x00" * ((16 - len(out) % 16) % 16)  # pad to a 16-byte boundary
+    out += FOOTER_ID
+    out += b"\x00" * (16 - len(out) % 16)  # pad to a 16-byte boundary, at least one byte (as the SDK does)
     out += b"\x00" * 4 + struct.pack("<I", version) + b"\x00" * 120 + FOOTER_MAGIC
     return bytes(out)
 

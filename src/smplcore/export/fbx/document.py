@@ -8,13 +8,12 @@ Matrices are 16 doubles with the translation in elements 12-14 (the transpose of
 from __future__ import annotations
 
 import datetime as _dt
-import hashlib
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from smplcore.export.fbx.binary import I32, I64, Node
+from smplcore.export.fbx.binary import CREATION_TIME, FILE_ID, I32, I64, Node
 
 #: FBX time unit: ticks per second
 KTIME_PER_SECOND = 46_186_158_000
@@ -152,11 +151,10 @@ class Document:
             entry.add("FileName", f"{take}.tak")
             entry.add("LocalTime", I64(0), I64(stop))
             entry.add("ReferenceTime", I64(0), I64(stop))
-        file_id = hashlib.md5(creator.encode() + now.isoformat().encode()).digest()
         return [
             header,
-            Node("FileId", [file_id]),
-            Node("CreationTime", [now.strftime("%Y-%m-%d %H:%M:%S:") + f"{now.microsecond // 1000:03d}"]),
+            Node("FileId", [FILE_ID]),  # with CreationTime and the footer id: the trio FBX SDK readers accept
+            Node("CreationTime", [CREATION_TIME]),
             Node("Creator", [creator]),
             settings,
             documents,
