@@ -362,3 +362,25 @@ def test_single_parameter_set(tmp_path, smpl):
     assert got["info"]["stack"] == "pose" and got["info"]["time_end"] == 0.0
     out = without_correctives(smpl)(**{k: np.asarray(v)[None] for k, v in params.items()})
     np.testing.assert_allclose(got["vertices_0"], out.vertices[0], atol=TOL, rtol=0)
+
+
+def test_assimp_reads_every_object_without_errors(tmp_path, smpl, fake_models):
+    """A third reader, Assimp (Debian's assimp-utils): its log has no error or warning, and it finds the skinned
+    mesh, the bones and the animation with a channel per joint."""
+    exe = shutil.which("assimp")
+    if exe is None:
+        pytest.skip("Assimp's command line tool is not installed (apt-get install assimp-utils)")
+    model = smplcore.BodyModel(
+        fake_models["smplx_neutral_npz"], use_pca=False, flat_hand_mean=True, num_expression_coeffs=10
+    )
+    motion = make_motion("smplx", seconds=0.3, fps=30.0, expression=10, seed=14)
+    options = {"shape_keys": True, "pose_correctives": True, "root_bone": "root", "up_axis": "z"}
+    save_fbx(tmp_path / "x.fbx", model, motion, vertex_colors=weight_colors(model.skinning_weights), **options)
+    dump = subprocess.run([exe, "dump", "x.fbx", "-l"], capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    log = [line for line in dump.stdout.splitlines() if line.startswith(("Error", "Warn"))]
+    assert dump.returncode == 0 and log == [], log[:5]
+    info = subprocess.run([exe, "info", "x.fbx"], capture_output=True, text=True, cwd=tmp_path, timeout=600).stdout
+    joints = len(model.skeleton_joint_names)
+    for expected in ("Meshes:             1", "Animations:         1", f"Bones:              {joints}"):
+        assert expected in info, info[:2000]
+    assert f"Animation Channels: {joints}" in info

@@ -11,7 +11,7 @@ a 13-byte null record | footer. A node record (versions < 7500) is::
     uint8  name_length, name
     properties              each: a one-letter type code, then the value
     children                node records, then a 13-byte null record (also written for a node that has
-                            neither properties nor children)
+                            neither properties nor children, and for an empty ``{}`` scope)
 
 Property codes: ``Y`` int16, ``C`` bool (1 byte), ``I`` int32, ``F`` float32, ``D`` float64, ``L`` int64,
 ``S`` string and ``R`` raw bytes (uint32 length + bytes); arrays ``b i l f d`` (uint32 count, uint32
@@ -73,11 +73,14 @@ class F32(_Typed):
 
 @dataclass
 class Node:
-    """One node record: a name, its properties and its children."""
+    """One node record: a name, its properties and its children. ``scope``: write the (possibly empty) nested
+    list even without children -- objects need one (``AnimationLayer: id, name, "" {}``); readers such as
+    Assimp refuse an object without it."""
 
     name: str
     props: list[Any] = field(default_factory=list)
     children: list[Node] = field(default_factory=list)
+    scope: bool = False
 
     def add(self, name: str, *props: Any) -> Node:
         """Append a child ``name`` with ``props`` and return it."""
@@ -128,7 +131,7 @@ def _encode_node(node: Node, out: bytearray) -> None:
     start = len(out)
     out += b"\x00" * 12  # end offset, property count, property bytes: patched below
     out += struct.pack("<B", len(name)) + name + props
-    if node.children or not node.props:
+    if node.children or node.scope or not node.props:
         for child in node.children:
             _encode_node(child, out)
         out += _NULL_RECORD

@@ -60,7 +60,7 @@ class Document:
     def new(self, kind: str, name: str, cls: str, subclass: str) -> tuple[int, Node]:
         """A new object ``kind`` (``Model``, ``Geometry``, ``Deformer``, ...): its id and node."""
         self._next_id += 1
-        node = Node(kind, [I64(self._next_id), object_name(name, cls), subclass])
+        node = Node(kind, [I64(self._next_id), object_name(name, cls), subclass], scope=True)
         self.objects.append(node)
         self.counts[kind] = self.counts.get(kind, 0) + 1
         return self._next_id, node

@@ -214,7 +214,7 @@ def add_blend_shapes(
     doc: Document, name: str, geometry: int, layer: int, shapes: Sequence[Shape], times: np.ndarray
 ) -> None:
     """A BlendShape deformer on ``geometry`` with one channel and shape per entry of ``shapes`` (offsets of the
-    vertices that move); keyed weights become ``DeformPercent`` curves (weight 1 = 100)."""
+    vertices that move; normal offsets zero); keyed weights become ``DeformPercent`` curves (weight 1 = 100)."""
     blend_id, blend = doc.new("Deformer", name, "Deformer", "BlendShape")
     blend.add("Version", I32(100))
     doc.connect(blend_id, geometry)
@@ -224,6 +224,7 @@ def add_blend_shapes(
         shape.add("Version", I32(100))
         shape.add("Indexes", rows.astype(np.int32))
         shape.add("Vertices", np.asarray(offsets[rows], np.float64).reshape(-1))
+        shape.add("Normals", np.zeros(3 * len(rows)))  # normal offsets: none (readers such as Assimp need the key)
         channel_id, channel = doc.new("Deformer", shape_name, "SubDeformer", "BlendShapeChannel")
         channel.add("Version", I32(100))
         first = 0.0 if keyed is None else float(keyed[0]) * 100.0
