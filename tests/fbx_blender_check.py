@@ -28,8 +28,7 @@ def render(path, mesh_obj):
     scene = bpy.context.scene
     scene.render.engine = "BLENDER_WORKBENCH"
     scene.display.shading.light = "STUDIO"
-    scene.display.shading.color_type = "SINGLE"
-    scene.display.shading.single_color = (0.8, 0.62, 0.52)
+    scene.display.shading.color_type = "TEXTURE" if mesh_obj.active_material else "SINGLE"  # the embedded one
     scene.render.resolution_x, scene.render.resolution_y = 420, 560
     scene.render.film_transparent = False
     scene.render.image_settings.file_format = "PNG"

@@ -94,6 +94,14 @@ def main():
         values, idx = hold(uv.values), hold(uv.indices)
         arrays["uv_values"] = np.array([[values[i].x, values[i].y] for i in range(len(values))])
         arrays["uv_indices"] = np.array([idx[i] for i in range(len(idx))], dtype=np.int64)
+    textures = items(scene, "textures")
+    info["textures"] = [t.name for t in textures]
+    if textures:
+        arrays["texture_content"] = np.frombuffer(textures[0].content, dtype=np.uint8)
+        info["texture_uv_set"] = textures[0].uv_set
+        material = items(mesh, "materials")[0]
+        diffuse = hold(hold(hold(material.fbx).diffuse_color).texture)
+        info["diffuse_texture"] = None if diffuse is None else diffuse.name
     color_sets = items(mesh, "color_sets")
     info["color_sets"] = [c.name for c in color_sets]
     if color_sets:

@@ -19,6 +19,7 @@ import smplcore
 from export_helpers import make_motion, open_model, without_correctives
 from smplcore.export import ExportReport, save_fbx, weight_colors
 from smplcore.export.fbx.binary import FILE_ID, FOOTER_ID, FOOTER_MAGIC, HEADER_MAGIC, I64, Node, encode_file
+from smplcore.export.uv import encode_png, uv_grid_texture
 
 HERE = Path(__file__).resolve().parent
 pytestmark = pytest.mark.filterwarnings("ignore:.*pose-corrective.*:UserWarning")
@@ -172,7 +173,7 @@ def test_open_model_with_uvs(tmp_path):
     model = open_model()
     motion = make_motion("smpl", seconds=0.5, fps=30.0, seed=1)
     colors = weight_colors(model.skinning_weights)
-    report = save_fbx(tmp_path / "open.fbx", model, motion, vertex_colors=colors)
+    report = save_fbx(tmp_path / "open.fbx", model, motion, vertex_colors=colors, texture="uv-grid")
     assert report.pose_corrective_max is None and not report.warnings and report.num_vertices == 13380
     got = read_with_ufbx(tmp_path / "open.fbx", [0, 14])
     check_frames(got, model, motion, [0, 14])
@@ -182,10 +183,16 @@ def test_open_model_with_uvs(tmp_path):
     corners = np.asarray(vt)[np.asarray(ft).reshape(-1)]
     np.testing.assert_allclose(got["uv_values"][got["uv_indices"]], corners, atol=1e-9)
     assert got["info"]["color_sets"] == ["Col"]
+    # the embedded texture is the material's diffuse colour, read through the UV map
+    assert got["info"]["textures"] == ["base_color"] and got["info"]["diffuse_texture"] == "base_color"
+    assert got["info"]["texture_uv_set"] == "UVMap"
+    assert got["texture_content"].tobytes() == encode_png(uv_grid_texture())
     rgba = np.c_[colors, np.full(len(colors), 255)][np.asarray(model.faces).reshape(-1)] / 255.0
     np.testing.assert_allclose(got["color_corners"], rgba, atol=1e-9)
     with pytest.raises(ValueError, match="no pose-corrective"):
         save_fbx(tmp_path / "x.fbx", model, motion, pose_correctives=True)
+    with pytest.raises(ValueError, match="texture"):
+        save_fbx(tmp_path / "x.fbx", model, motion, texture="uv-grid", uv=False)
 
 
 def test_smplx_hands_expressions_and_correctives(tmp_path, fake_models):
@@ -267,6 +274,8 @@ def test_command_line(tmp_path, capsys, smpl, fake_models):
     model_path = str(fake_models["smpl_neutral_pkl"])
     args = ["export", str(path), "--model-path", model_path, "--num-betas", "10", "--no-progress"]
     fbx_options = ["--up-axis", "z", "--root-bone", "root", "--morph-targets", "--colors", "weights"]
+    assert main(args + ["-o", str(tmp_path / "t.fbx"), "--texture", "uv-grid"]) == 2  # the fake SMPL has no UVs
+    assert "texture" in capsys.readouterr().err
     assert main(args + ["-o", str(tmp_path / "w.fbx"), *fbx_options]) == 0
     printed = capsys.readouterr()
     assert "(fbx," in printed.out and "12 frame(s) at 30 fps, 25 joints" in printed.out

@@ -1,6 +1,7 @@
 #!/usr/bin/env python
-"""docs/fbx_blender.png: the open model walking a step, written as FBX by smplcore, imported by Blender's own
-FBX importer (headless) and rendered with its Workbench engine at the last frame.
+"""docs/fbx_blender.png: the open model walking a step, written as FBX by smplcore with the UV-grid texture
+embedded, imported by Blender's own FBX importer (headless) and rendered with its Workbench engine (texture
+colours) at the last frame.
 
     python tools/render_fbx_blender.py [OUT.png]     # needs the `blender` program (apt-get install blender)
 """
@@ -44,7 +45,7 @@ def main() -> None:
     model = smplcore.BodyModel(model_type="open")
     with tempfile.TemporaryDirectory() as tmp:
         fbx = Path(tmp) / "step.fbx"
-        print(save_fbx(fbx, model, step(), up_axis="z").summary())
+        print(save_fbx(fbx, model, step(), up_axis="z", texture="uv-grid").summary())
         script = ROOT / "tests" / "fbx_blender_check.py"
         command = [blender, "-b", "--factory-startup", "--python-exit-code", "1", "-P", str(script)]
         subprocess.run(command + ["--", str(fbx), "29", "--png", str(out)], check=True, capture_output=True)

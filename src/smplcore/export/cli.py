@@ -109,7 +109,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--texture",
         default=None,
         metavar="FILE",
-        help=".obj/.glb: image drawn through the model's UV map (the open model, SMPL-X; the UVs are written "
+        help=".obj/.glb/.fbx: image drawn through the model's UV map (the open model, SMPL-X; the UVs are written "
         "whenever the model has them), or 'uv-grid' for a generated grid that shows the mapping",
     )
     parser.add_argument(
@@ -244,8 +244,8 @@ def run(args: argparse.Namespace) -> int:
     suffix = out.suffix.lower()
     if suffix not in FORMATS:
         raise ValueError(f"-o/--output: unsupported suffix {out.suffix!r}; expected one of {', '.join(FORMATS)}")
-    if args.texture is not None and suffix not in (".obj", ".glb"):
-        raise ValueError(f"--texture: textures are written to .obj and .glb files, not {out.suffix!r}")
+    if args.texture is not None and suffix not in (".obj", ".glb", ".fbx"):
+        raise ValueError(f"--texture: textures are written to .obj, .glb and .fbx files, not {out.suffix!r}")
     source = load_input(args.input, fps=args.fps)  # the rate of a motion that states none
     frames = _frame_slice(args.frames)
     if frames is not None:

@@ -63,5 +63,6 @@ def write_fbx(
         shape_keys=args.morph_targets,
         pose_correctives=args.pose_correctives,
         vertex_colors=weight_colors(anim.weights) if args.colors == "weights" else None,
+        texture=args.texture,
         progress=progress,
     )

@@ -11,7 +11,15 @@ import numpy as np
 from smplcore.export.fbx.binary import I32, I64
 from smplcore.export.fbx.document import Document, matrix, properties70
 
-__all__ = ["add_mesh", "add_skeleton", "add_skin", "add_blend_shapes", "add_animation_stack", "add_curves"]
+__all__ = [
+    "add_mesh",
+    "add_texture",
+    "add_skeleton",
+    "add_skin",
+    "add_blend_shapes",
+    "add_animation_stack",
+    "add_curves",
+]
 
 #: a named blend shape: (name, (V, 3) offsets in file units, per-frame weights (T,) or None for a constant 0)
 Shape = tuple[str, np.ndarray, "np.ndarray | None"]
@@ -34,9 +42,10 @@ def add_mesh(
     normals: np.ndarray,
     uv: tuple[np.ndarray, np.ndarray] | None = None,
     colors: np.ndarray | None = None,
-) -> tuple[int, int]:
+) -> tuple[int, int, int]:
     """A triangle mesh with per-vertex ``normals`` (V, 3), optional ``uv`` = (vt (T, 2), ft (F, 3)) and RGBA
-    ``colors`` (V, 4) in [0, 1], under the scene root with a plain material. Returns (model id, geometry id)."""
+    ``colors`` (V, 4) in [0, 1], under the scene root with a plain material. Returns (model id, geometry id,
+    material id)."""
     geometry_id, geometry = doc.new("Geometry", name, "Geometry", "Mesh")
     properties70(geometry)
     geometry.add("GeometryVersion", I32(124))
@@ -82,7 +91,30 @@ def add_mesh(
         ("SpecularFactor", "Number", "", "A", 0.1),
     )
     doc.connect(material_id, model_id)
-    return model_id, geometry_id
+    return model_id, geometry_id, material_id
+
+
+def add_texture(doc: Document, material: int, png: bytes, name: str = "base_color") -> None:
+    """An embedded PNG (a ``Video`` clip with its ``Content``) as the diffuse-colour texture of ``material``,
+    read through the mesh's UV map ``UVMap``."""
+    filename = f"{name}.png"
+    video_id, video = doc.new("Video", name, "Video", "Clip")
+    video.add("Type", "Clip")
+    properties70(video, ("Path", "KString", "XRefUrl", "", filename))
+    video.add("UseMipMap", I32(0))
+    video.add("Filename", filename)
+    video.add("RelativeFilename", filename)
+    video.add("Content", png)
+    texture_id, texture = doc.new("Texture", name, "Texture", "")
+    texture.add("Type", "TextureVideoClip")
+    texture.add("Version", I32(202))
+    texture.add("TextureName", f"{name}\x00\x01Texture")
+    properties70(texture, ("UVSet", "KString", "", "", "UVMap"), ("UseMaterial", "bool", "", "", I32(1)))
+    texture.add("Media", f"{name}\x00\x01Video")
+    texture.add("FileName", filename)
+    texture.add("RelativeFilename", filename)
+    doc.connect(video_id, texture_id)
+    doc.connect(texture_id, material, "DiffuseColor")
 
 
 def _limb(doc: Document, joint: str, translation: np.ndarray, rotation_order: int) -> int:

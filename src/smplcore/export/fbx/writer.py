@@ -44,10 +44,12 @@ from smplcore.export.fbx.objects import (
     add_mesh,
     add_skeleton,
     add_skin,
+    add_texture,
 )
 from smplcore.export.gltf import _version, _vertex_normals
 from smplcore.export.mesh import _check_vertex_colors
 from smplcore.export.soft_tissue import dmpl_joint_shift
+from smplcore.export.uv import TextureInput, encode_png, resolve_texture
 
 __all__ = ["save_fbx", "ROTATION_ORDERS"]
 
@@ -80,6 +82,7 @@ def save_fbx(
     pose_correctives: bool = False,
     uv: bool | None = None,
     vertex_colors: Any = None,
+    texture: TextureInput | None = None,
     rotation_order: str = "XYZ",
     name: str | None = None,
     progress: Progress | None = None,
@@ -107,6 +110,8 @@ def save_fbx(
     uv : write the model's UV map (default: whenever it has one).
     vertex_colors : optional (V, 3|4) colours (floats in [0, 1] or uint8), written as ``LayerElementColor``,
         e.g. :func:`smplcore.export.weight_colors` of the skinning weights.
+    texture : optional diffuse-colour texture for the UV map, embedded as PNG: an image file, an (H, W, 3|4)
+        uint8 array or ``"uv-grid"`` (needs the model's UV map and Pillow).
     rotation_order : Euler order of the rotation curves, one of :data:`ROTATION_ORDERS` (FBX's meaning: the
         first axis is applied first).
     name : name of the animation stack (default: the input file's stem, or ``"motion"``).
@@ -138,6 +143,10 @@ def save_fbx(
     uv_map = None if facts.uv is None else (facts.uv.vt, facts.uv.ft)
     if uv and uv_map is None:
         raise ValueError(f"uv: the {anim.model_type} model has no UV map (vt/ft)")
+    if texture is not None and (uv_map is None or uv is False):
+        raise ValueError("texture: a texture needs the model's UV map; the model has none or uv=False was given")
+    image = resolve_texture(texture)
+    png = None if image is None else encode_png(image)
     if root_bone is not None and root_bone in anim.joint_names:
         raise ValueError(f"root_bone: {root_bone!r} is already a joint of the {anim.model_type} model")
     notes = list(anim.notes)
@@ -155,7 +164,12 @@ def save_fbx(
     colors = None
     if vertex_colors is not None:
         colors = _check_vertex_colors(vertex_colors, anim.rest_vertices.shape[0]).astype(np.float64) / 255.0
-    mesh = add_mesh(doc, body, place(anim.rest_vertices), faces, normals, uv_map if uv is not False else None, colors)
+    model_id, geometry_id, material_id = add_mesh(
+        doc, body, place(anim.rest_vertices), faces, normals, uv_map if uv is not False else None, colors
+    )
+    mesh = (model_id, geometry_id)
+    if png is not None:
+        add_texture(doc, material_id, png)
     bones = add_skeleton(doc, anim.joint_names, anim.parents, place(anim.offsets), root_bone, ROTATION_ORDERS[order])
     weights = np.asarray(anim.weights, np.float64)
     add_skin(doc, body, mesh, bones, anim.joint_names, weights, place(anim.rest_joints), facts.skinning == "dqs")
