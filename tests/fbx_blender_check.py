@@ -72,6 +72,13 @@ def main():
         "shape_keys": [k.name for k in keys.key_blocks] if keys else [],
         "uv_layers": [layer.name for layer in mesh_obj.data.uv_layers],
         "vertex_groups": len(mesh_obj.vertex_groups),
+        "images": [
+            [node.image.name, list(node.image.size)]
+            for slot in mesh_obj.material_slots
+            if slot.material is not None and slot.material.node_tree is not None
+            for node in slot.material.node_tree.nodes
+            if node.type == "TEX_IMAGE" and node.image is not None
+        ],
         "vertices": {},
         "heads": {},
     }

@@ -393,3 +393,16 @@ def test_assimp_reads_every_object_without_errors(tmp_path, smpl, fake_models):
     for expected in ("Meshes:             1", "Animations:         1", f"Bones:              {joints}"):
         assert expected in info, info[:2000]
     assert f"Animation Channels: {joints}" in info
+
+
+@pytest.mark.slow
+def test_blender_imports_uvs_and_the_embedded_texture(tmp_path):
+    model = open_model()
+    rng = np.random.default_rng(15)
+    params = {"body_pose": rng.normal(0, 0.2, (4, 69)), "transl": rng.normal(0, 0.1, (4, 3))}
+    save_fbx(tmp_path / "t.fbx", model, params, texture="uv-grid", up_axis="z")
+    data = _blender(tmp_path / "t.fbx", [0, 3])
+    assert data["uv_layers"] == ["UVMap"] and data["images"] == [["base_color", [1024, 1024]]]
+    for k in (0, 3):
+        out = model(**{key: value[k : k + 1] for key, value in params.items()})
+        np.testing.assert_allclose(data["vertices"][str(k)], out.vertices[0], atol=TOL, rtol=0)
