@@ -4,7 +4,8 @@ The file holds
 
 * a mesh (``Geometry`` + ``Model``): the shaped rest mesh (betas applied), polygon indices (each face's last
   index stored as ``-(i + 1)``), smooth per-vertex normals, and the model's UV map when it has one
-  (``LayerElementUV``, one UV per face corner, so nothing is split along the seams);
+  (``LayerElementUV``, one UV per face corner, so nothing is split along the seams); optionally vertex colours
+  (``LayerElementColor``) and a diffuse texture embedded as PNG (``Video`` + ``Texture`` on the material);
 * a skeleton: one ``LimbNode`` model per joint, named after it, nested as the kinematic tree, rest
   transforms ``joint - parent joint`` with no rotation; optionally a ``root`` bone at the origin above the
   pelvis (what Unreal's importer expects); the rest pose is the bind pose (a ``BindPose`` node);
