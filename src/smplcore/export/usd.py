@@ -168,7 +168,7 @@ def save_usd(
     notes = list(anim.notes)
 
     max_influences = int((anim.weights > 0).sum(axis=1).max())
-    k = max_influences if influences is None else min(int(influences), anim.num_joints)
+    k = max_influences if influences is None else min(int(influences), max_influences)
     joints_idx, values, _ = top_k_weights(anim.weights, k)
     err = truncation_error(anim, joints_idx, values, progress=progress) if k < max_influences else None
     corrective = None
