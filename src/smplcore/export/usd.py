@@ -371,7 +371,9 @@ def _write_stage(
         binding.CreateBlendShapeTargetsRel().SetTargets(targets)
     if uv is not None:
         vt, ft = uv
-        st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying)
+        st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar(
+            "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying
+        )
         st.Set(Vt.Vec2fArray.FromNumpy(np.asarray(vt, dtype=np.float32)))
         st.SetIndices(Vt.IntArray.FromNumpy(np.asarray(ft, dtype=np.int32).reshape(-1)))
 
