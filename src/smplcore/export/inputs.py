@@ -26,8 +26,7 @@ def load_input(path: str | Path, *, fps: float | None = None) -> Any:
     """Read an export input file: an AMASS-style motion ``.npz`` (has ``poses``) or a ``.smpl`` file
     (:mod:`smplcore.export.smplfile`) as a :class:`~smplcore.motion.Motion`, or a parameter set (``.npz`` or
     ``.json`` whose keys are model keyword arguments -- ``betas``, ``global_orient``, ``body_pose``, ``transl``,
-    ... -- and
-    optionally ``fps``) as a dict of arrays. No pickles are read.
+    ... -- and optionally ``fps``) as a dict of arrays. No pickles are read.
 
     ``fps`` is the frame rate of a motion that states none (see :func:`_motion_input`); a motion
     without a frame rate and without ``fps`` is refused."""
