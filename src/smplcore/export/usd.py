@@ -33,8 +33,7 @@ from __future__ import annotations
 import dataclasses
 import tempfile
 from pathlib import Path
-from types import SimpleNamespace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -48,7 +47,10 @@ from smplcore.export.animation import (
     top_k_weights,
     truncation_error,
 )
-from smplcore.export.uv import TextureInput, encode_png, model_uv, resolve_texture
+from smplcore.export.uv import TextureInput, encode_png, resolve_texture
+
+if TYPE_CHECKING:  # pragma: no cover
+    from smplcore.model import Rig
 
 __all__ = ["USD_SUFFIXES", "save_usd"]
 
@@ -56,22 +58,14 @@ USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
 _TEXTURE_NAME = "textures/body_albedo.png"
 
 
-def _rig_of(model: Any) -> SimpleNamespace:
-    """The model facts the USD writer reads beyond the :class:`Animation` (the one place that reads them;
-    to become ``model.rig`` once the public Rig exists): pose-corrective basis (P, V, 3), expression and
-    shape bases (V, 3, n), DMPL basis or None, the UV map or None, the gender."""
-    setup = model.setup
-    stored = getattr(setup.data, "posedirs", None)  # (V, 3, P) as stored, or None (the open model)
-    num_vertices = int(setup.data.num_vertices)
-    posedirs = np.zeros((0, num_vertices, 3)) if stored is None else np.moveaxis(np.asarray(stored, np.float64), -1, 0)
-    return SimpleNamespace(
-        posedirs=posedirs,
-        exprdirs=np.asarray(setup.exprdirs, dtype=np.float64),
-        shapedirs=np.asarray(setup.shapedirs, dtype=np.float64),
-        dmpldirs=None if setup.dmpldirs is None else np.asarray(setup.dmpldirs, dtype=np.float64),
-        uv=model_uv(model),
-        gender=str(getattr(setup.data, "gender", "") or "neutral"),
-    )
+def _rig_of(model: Any) -> Rig:
+    """The model's public facts (:class:`smplcore.model.Rig`): pose-corrective, expression, shape and DMPL
+    bases, the UV map, the gender -- what the writer needs beyond the :class:`Animation`."""
+    return model.rig
+
+
+def _uv_of(rig: Rig) -> tuple[np.ndarray, np.ndarray] | None:
+    return None if rig.uv is None else (np.asarray(rig.uv.vt), np.asarray(rig.uv.ft))
 
 
 def joint_paths(joint_names: list[str], parents: np.ndarray) -> list[str]:
@@ -157,11 +151,12 @@ def save_usd(
     if fps is not None and isinstance(source, Animation):
         anim = dataclasses.replace(anim, fps=float(fps))
     rig = _rig_of(model)
-    if uv and rig.uv is None:
+    uv_map = _uv_of(rig)
+    if uv and uv_map is None:
         raise ValueError(f"uv: the {anim.model_type} model has no UV map (vt/ft)")
-    if texture is not None and (rig.uv is None or uv is False):
+    if texture is not None and (uv_map is None or uv is False):
         raise ValueError("texture: a texture needs the model's UV map; the model has none or uv=False was given")
-    has_correctives = bool(np.any(rig.posedirs)) if rig.posedirs.size else False
+    has_correctives = bool(rig.posedirs.size) and bool(np.any(rig.posedirs))
     if pose_correctives and not has_correctives:
         raise ValueError(f"pose_correctives: the {anim.model_type} model has no pose-corrective blend shapes")
     image = resolve_texture(texture)
@@ -208,7 +203,7 @@ def save_usd(
             joints_idx,
             values,
             shapes,
-            uv=rig.uv if uv is not False else None,
+            uv=uv_map if uv is not False else None,
             texture=_TEXTURE_NAME if texture_file is not None else None,
             anim_name=name or "Motion",
             progress=progress,
@@ -246,7 +241,7 @@ _Shape = tuple[str, np.ndarray, np.ndarray | None]  # name, (V, 3) offsets, (T,)
 
 
 def _blend_shapes(
-    anim: Animation, rig: SimpleNamespace, pose_correctives: bool, shape: bool, progress: Progress | None
+    anim: Animation, rig: Rig, pose_correctives: bool, shape: bool, progress: Progress | None
 ) -> list[_Shape]:
     """The blend shapes to write, with their per-frame weights."""
     from smplcore.engine import pose_features
@@ -273,7 +268,7 @@ def _blend_shapes(
 def _write_stage(
     path: Path,
     anim: Animation,
-    rig: SimpleNamespace,
+    rig: Rig,
     joints_idx: np.ndarray,
     values: np.ndarray,
     shapes: list[_Shape],
