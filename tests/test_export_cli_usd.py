@@ -32,8 +32,10 @@ def test_usdz_from_a_motion_and_smpl_back_again(tmp_path, capsys, fake_models, s
     path, motion = smplx_motion
     model_path = str(fake_models["smplx_neutral_npz"])
     out = tmp_path / "talk.usdz"
-    assert main(["export", str(path), "-o", str(out), "--model-path", model_path, "--pose-correctives"]) == 0
+    args = ["export", str(path), "-o", str(out), "--model-path", model_path, "--pose-correctives", "--unit-weights"]
+    assert main(args) == 0
     printed = capsys.readouterr().out
+    assert "morph targets: 972 (pose_0_pos, pose_0_neg" in printed  # 2 x 9 x 54
     assert f"wrote {out} (usdz" in printed and "15 frame(s) at 30 fps, 55 joints" in printed
     assert validation_errors(out) == []
     model = smplcore.BodyModel(model_path, use_pca=False, flat_hand_mean=True)

@@ -168,6 +168,22 @@ def test_smpl_usdz_with_pose_correctives_is_the_full_model(tmp_path, smpl):
     err = worst(baked_points(path, [0, 7, 14]), smpl, motion)  # the full forward, correctives included
     assert err < 1e-4, f"USD (blend shapes + skinning) differs from the model by {err * 1000:.4f} mm"
 
+    # unit_weights: every signed shape as a +/- pair with weights in [0, 1] (for Blender); the same body
+    from pxr import Usd, UsdSkel
+
+    path = tmp_path / "unit.usdc"
+    report = save_usd(path, smpl, motion, pose_correctives=True, unit_weights=True)
+    assert len(report.morph_targets) == 2 * 9 * 23 and report.morph_targets[:2] == ["pose_0_pos", "pose_0_neg"]
+    stage = Usd.Stage.Open(str(path))
+    weights = np.array(
+        [
+            UsdSkel.Animation(stage.GetPrimAtPath("/Body/Skeleton/Motion")).GetBlendShapeWeightsAttr().Get(k)
+            for k in range(motion.num_frames)
+        ]
+    )
+    assert weights.min() >= 0.0 and weights.max() <= 1.0
+    assert worst(baked_points(path, [0, 7, 14]), smpl, motion) < 1e-4
+
 
 def test_smpl_without_correctives_says_so_and_equals_the_plain_model(tmp_path, smpl):
     motion = make_motion("smpl", seconds=0.5, seed=6)
@@ -295,59 +311,29 @@ def _blender_command(script: Path) -> list[str]:
 
 
 def test_blender_imports_the_usd(tmp_path, smpl):
-    """Blender's own USD importer (UsdSkel skeleton + skin) poses the body like the model. Skips on a Blender
-    without USD support (Debian's 3.4 is built without it) or without UsdSkel import (before 3.5)."""
+    """Blender's own USD importer (UsdSkel skeleton, skin, blend shapes as shape keys) poses the body like the
+    model: the plain rig like the model without pose correctives, and a file with the pose correctives written
+    with ``unit_weights`` (Blender clamps shape keys to [0, 1]) like the full model. Skips on a Blender without
+    USD support (Debian's 3.4 is built without it) or without UsdSkel import (before 3.5)."""
     script = tmp_path / "blender_usd.py"
     script.write_text(BLENDER_SCRIPT)
     motion = make_motion("smpl", seconds=0.5, seed=11)
-    path = tmp_path / "blender.usdc"
-    save_usd(path, smpl, motion)
     frames = [0, 7, 14]
-    result = subprocess.run(
-        [*_blender_command(script), str(path), ",".join(map(str, frames))],
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert result.returncode == 0, result.stderr[-2000:]
-    data = json.loads(result.stdout.split("\nJSON:", 1)[1])
-    if "skip" in data:
-        pytest.skip(data["skip"])
     plain = without_correctives(smpl)
-    for k in frames:
-        got = np.array(data["vertices"][str(k)])
-        err = float(np.linalg.norm(got - forward(plain, motion, k), axis=1).max())
-        assert err < 1e-4, f"Blender {data['version']}, frame {k}: {err * 1000:.4f} mm"
-
-
-def test_dmpl_soft_tissue_is_animated_blend_shapes(tmp_path, fake_models):
-    from fakes_dmpl import write_dmpl
-
-    dmpl = write_dmpl(tmp_path)
-    model = smplcore.BodyModel(fake_models["smplh_female_npz"], use_pca=False, flat_hand_mean=True, dmpl_path=dmpl)
-    motion = make_motion("smplh", seconds=0.3, seed=14)
-    poses, trans = np.array(motion.poses), np.array(motion.trans)
-    poses[0], trans[0] = 0.0, 0.0  # frame 0 in the rest pose: skinning is the identity whatever the joints
-    dmpls = np.random.default_rng(0).normal(0, 1, (motion.num_frames, 8))
-    motion = dataclasses_replace(motion, poses=poses, trans=trans, dmpls=dmpls)
-    path = tmp_path / "soft.usdc"
-    report = save_usd(path, model, motion, pose_correctives=True)
-    assert [n for n in report.morph_targets if n.startswith("dmpl_")] == [f"dmpl_{i}" for i in range(8)]
-    assert validation_errors(path) == []
-    params = motion.model_params("smplh", model.skeleton_joint_names)
-    shift = [w for w in report.warnings if "DMPL soft tissue moves" in w]
-    bound = float(shift[0].split("up to ")[1].split(" mm")[0]) / 1000 + 1e-4 if shift else 1e-4
-    for k, got in baked_points(path, [0, 8]).items():
-        one = {n: v[k : k + 1] if n != "betas" else v for n, v in params.items()}
-        expected = model(**one, dmpls=motion.dmpls[k : k + 1]).vertices[0]
-        # frame 0: the soft tissue exactly; posed frames: the skeleton is the one without soft tissue, so
-        # within the joint shift the report states
-        assert float(np.linalg.norm(got - expected, axis=1).max()) < (1e-5 if k == 0 else bound)
-
-
-def test_progress_counts_every_frame_of_each_pass(tmp_path, smpl):
-    motion = make_motion("smpl", seconds=0.5, seed=15)
-    seen: list[int] = []
-    save_usd(tmp_path / "p.usdc", smpl, motion, pose_correctives=True, progress=seen.append)
-    # preparing, pose features, writing the animation: each pass reports all frames
-    assert sum(seen) == 3 * motion.num_frames
+    save_usd(tmp_path / "plain.usdc", smpl, motion)
+    save_usd(tmp_path / "full.usdz", smpl, motion, pose_correctives=True, unit_weights=True)
+    for name, reference in (("plain.usdc", plain), ("full.usdz", smpl)):
+        result = subprocess.run(
+            [*_blender_command(script), str(tmp_path / name), ",".join(map(str, frames))],
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
+        assert result.returncode == 0, result.stderr[-2000:]
+        data = json.loads(result.stdout.split("\nJSON:", 1)[1])
+        if "skip" in data:
+            pytest.skip(data["skip"])
+        for k in frames:
+            got = np.array(data["vertices"][str(k)])
+            err = float(np.linalg.norm(got - forward(reference, motion, k), axis=1).max())
+            assert err < 1e-4, f"Blender {data['version']}, {name}, frame {k}: {err * 1000:.4f} mm"

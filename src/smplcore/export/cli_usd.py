@@ -47,6 +47,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=".usd/.usdz: add the shape components as blend shapes at weight 0",
     )
     parser.add_argument(
+        "--unit-weights",
+        action="store_true",
+        help=".usd/.usdz: blend-shape weights in [0, 1] (signed shapes as +/- pairs), for Blender's shape keys",
+    )
+    parser.add_argument(
         "--up",
         choices=("y", "z"),
         default="y",
@@ -114,6 +119,7 @@ def run_interchange(args: argparse.Namespace, fmt: str) -> int:
                     fps=args.fps,
                     pose_correctives=args.pose_correctives,
                     shape_blend_shapes=args.shape_blend_shapes,
+                    unit_weights=args.unit_weights,
                     texture=args.texture,
                     progress=None if bar is None else bar.update,
                 )

@@ -103,6 +103,7 @@ def save_usd(
     fps: float | None = None,
     pose_correctives: bool = False,
     shape_blend_shapes: bool = False,
+    unit_weights: bool = False,
     influences: int | None = None,
     uv: bool | None = None,
     texture: TextureInput | None = None,
@@ -125,6 +126,11 @@ def save_usd(
         Without them the body is the model without pose correctives, and the report says by how much.
     shape_blend_shapes : add the shape components as blend shapes ``beta_k`` at weight 0 (edits on top
         of the baked shape; the skeleton does not follow them).
+    unit_weights : write each animated blend shape as a pair, ``name_pos`` and ``name_neg`` (the offsets
+        negated), both scaled so that their weights stay in [0, 1]: the same deformation for importers that
+        clamp blend-shape weights to [0, 1] -- Blender's shape keys, whose sliders default to that range
+        (without it, Blender drops the negative half of the pose correctives and expressions). Doubles the
+        animated blend shapes.
     influences : joint weights kept per vertex (default: all non-zero weights of the model, exact).
     uv : write the model's UV map as ``primvars:st`` (default: whenever the model has one).
     texture : base-colour texture for the UV map: an image file, an (H, W, 3|4) uint8 array or
@@ -188,6 +194,8 @@ def save_usd(
             )
 
     shapes = _blend_shapes(anim, rig, pose_correctives, shape_blend_shapes, progress)
+    if unit_weights:
+        shapes = _unit_weight_pairs(shapes)
     with tempfile.TemporaryDirectory(prefix="smplcore-usd-") as tmp:
         stage_path = Path(tmp) / (path.stem + ".usdc") if suffix == ".usdz" else path
         stage_path.parent.mkdir(parents=True, exist_ok=True)
@@ -263,6 +271,20 @@ def _blend_shapes(
     if shape:
         shapes += [(f"beta_{i}", rig.shapedirs[:, :, i], None) for i in range(rig.shapedirs.shape[2])]
     return shapes
+
+
+def _unit_weight_pairs(shapes: list[_Shape]) -> list[_Shape]:
+    """Each animated shape (offsets o, weights w) as ``_pos`` (o s, max(w, 0) / s) and ``_neg`` (-o s, max(-w, 0) / s)
+    with s = max |w| (at least 1): weights in [0, 1], the same sum."""
+    out: list[_Shape] = []
+    for name, offsets, weights in shapes:
+        if weights is None:
+            out.append((name, offsets, weights))
+            continue
+        scale = max(float(np.abs(weights).max(initial=0.0)), 1.0)
+        out.append((f"{name}_pos", offsets * scale, np.maximum(weights, 0.0) / scale))
+        out.append((f"{name}_neg", -offsets * scale, np.maximum(-weights, 0.0) / scale))
+    return out
 
 
 def _write_stage(
