@@ -111,6 +111,11 @@ class BodyModel:
         return rig
 
     @property
+    def model_data(self) -> ModelData:
+        """The file's arrays the model was built from (:class:`smplcore.io.ModelData`, options not applied)."""
+        return self.setup.data
+
+    @property
     def arrays(self) -> Any:
         """The engine's arrays (:class:`smplcore.engine.BodyArrays`) in this model's dtype."""
         return self.source.fast_arrays()

@@ -34,7 +34,6 @@ def dmpls_of(model: Any, source: Any, frames: int) -> np.ndarray | None:
 def dmpl_joint_shift(model: Any, dmpls: np.ndarray) -> float:
     """Largest distance (metres) the (T, n) ``dmpls`` move a rest joint of ``model`` (through its regressor):
     what a rig, whose skeleton is the one without soft tissue, leaves out."""
-    regressor = np.asarray(model.setup.data.J_regressor, dtype=np.float64)
-    joint_dirs = np.einsum("jv,vdk->kjd", regressor, np.asarray(model.setup.dmpldirs, np.float64))
-    moved = np.einsum("tk,kjd->tjd", dmpls, joint_dirs)
+    joint_dirs = model.rig.joint_dmpldirs  # (J, 3, n)
+    moved = np.einsum("tk,jdk->tjd", dmpls, joint_dirs)
     return float(np.linalg.norm(moved, axis=-1).max()) if moved.size else 0.0

@@ -289,6 +289,8 @@ def rig_from_setup(setup: ModelSetup, *, shapedirs: np.ndarray | None = None) ->
     """The :class:`Rig` of a front end's :class:`~smplcore.frontend.setup.ModelSetup`.
 
     ``shapedirs`` replaces the setup's shape basis (MANO's ``fix_left_shapedirs``)."""
+    from scipy import sparse
+
     spec, d = setup.spec, setup.data
     num_vertices, num_joints = d.num_vertices, d.num_joints
     template = _f64(d.v_template)
@@ -297,8 +299,11 @@ def rig_from_setup(setup: ModelSetup, *, shapedirs: np.ndarray | None = None) ->
     expr = _f64(setup.exprdirs)
     dmpl = None if setup.dmpldirs is None else _f64(setup.dmpldirs)
 
+    sparse_regressor = sparse.csr_matrix(regressor)  # 10-40 vertices a row: the joint directions cost little
+
     def joint_dirs(dirs: np.ndarray) -> np.ndarray:
-        return np.einsum("jv,vck->jck", regressor, dirs) if dirs.shape[-1] else np.zeros((num_joints, 3, 0))
+        flat = np.asarray(sparse_regressor @ dirs.reshape(num_vertices, -1))
+        return flat.reshape(num_joints, *dirs.shape[1:])
 
     num_pose = 9 * (num_joints - 1)
     has_correctives = d.posedirs is not None and bool(np.any(d.posedirs))
@@ -336,7 +341,7 @@ def rig_from_setup(setup: ModelSetup, *, shapedirs: np.ndarray | None = None) ->
         dmpldirs=dmpl,
         posedirs=posedirs,
         joint_regressor=regressor,
-        template_joints=regressor @ template,
+        template_joints=np.asarray(sparse_regressor @ template),
         joint_shapedirs=joint_dirs(shape),
         weights=_f64(d.weights),
         parents=np.asarray(d.parents, np.int64),

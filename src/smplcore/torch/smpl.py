@@ -216,6 +216,11 @@ class SMPL(nn.Module):
             rig = self.__dict__["_rig"] = rig_from_setup(self.setup)
         return rig
 
+    @property
+    def model_data(self) -> ModelData:
+        """The file's arrays the model was built from (:class:`smplcore.io.ModelData`, options not applied)."""
+        return self.setup.data
+
     # -- smplx's accessors --------------------------------------------------------------------------
 
     @property

@@ -104,7 +104,7 @@ class ProcessOptions:
         if self.chunk is not None and self.chunk < 1:
             raise ValueError(f"chunk: expected a positive number of frames, got {self.chunk}")
         parse_axes(self.axes)
-        from smplcore.frontend.setup import check_skinning
+        from smplcore.model import check_skinning
 
         check_skinning(self.skinning)
 
