@@ -310,6 +310,7 @@ def _blender_command(script: Path) -> list[str]:
     pytest.skip("neither SMPLCORE_TEST_BLENDER_PYTHON nor a `blender` executable is available")
 
 
+@pytest.mark.slow
 def test_blender_imports_the_usd(tmp_path, smpl):
     """Blender's own USD importer (UsdSkel skeleton, skin, blend shapes as shape keys) poses the body like the
     model: the plain rig like the model without pose correctives, and a file with the pose correctives written
