@@ -214,6 +214,13 @@ def test_smplx_constant_and_varying_expression(tmp_path, smplx_model):
     assert [n for n in report.morph_targets if n.startswith("expr_")] == [f"expr_{i}" for i in range(10)]
     shift = [w for w in report.warnings if "expression moves" in w]
     assert validation_errors(path) == []
+    from pxr import Usd, UsdSkel
+
+    stage = Usd.Stage.Open(str(path))
+    expr = UsdSkel.BlendShape(stage.GetPrimAtPath("/Body/Mesh/expr_0"))
+    moved = np.flatnonzero(np.any(smplx_model.rig.exprdirs[:, :, 0] != 0, axis=1))
+    np.testing.assert_array_equal(np.array(expr.GetPointIndicesAttr().Get()), moved)  # sparse: the face only
+    assert len(moved) < smplx_model.rig.num_vertices / 4
     err = worst(baked_points(path, [0, 5, 11]), smplx_model, motion)
     # the skeleton is the neutral expression's: the error is bounded by the joint shift the report gives
     bound = float(shift[0].split("up to ")[1].split(" mm")[0]) / 1000 + 1e-4 if shift else 1e-4
@@ -338,3 +345,36 @@ def test_blender_imports_the_usd(tmp_path, smpl):
             got = np.array(data["vertices"][str(k)])
             err = float(np.linalg.norm(got - forward(reference, motion, k), axis=1).max())
             assert err < 1e-4, f"Blender {data['version']}, {name}, frame {k}: {err * 1000:.4f} mm"
+
+
+def test_dmpl_soft_tissue_is_animated_blend_shapes(tmp_path, fake_models):
+    from fakes_dmpl import write_dmpl
+
+    dmpl = write_dmpl(tmp_path)
+    model = smplcore.BodyModel(fake_models["smplh_female_npz"], use_pca=False, flat_hand_mean=True, dmpl_path=dmpl)
+    motion = make_motion("smplh", seconds=0.3, seed=14)
+    poses, trans = np.array(motion.poses), np.array(motion.trans)
+    poses[0], trans[0] = 0.0, 0.0  # frame 0 in the rest pose: skinning is the identity whatever the joints
+    dmpls = np.random.default_rng(0).normal(0, 1, (motion.num_frames, 8))
+    motion = dataclasses_replace(motion, poses=poses, trans=trans, dmpls=dmpls)
+    path = tmp_path / "soft.usdc"
+    report = save_usd(path, model, motion, pose_correctives=True)
+    assert [n for n in report.morph_targets if n.startswith("dmpl_")] == [f"dmpl_{i}" for i in range(8)]
+    assert validation_errors(path) == []
+    params = motion.model_params("smplh", model.skeleton_joint_names)
+    shift = [w for w in report.warnings if "DMPL soft tissue moves" in w]
+    bound = float(shift[0].split("up to ")[1].split(" mm")[0]) / 1000 + 1e-4 if shift else 1e-4
+    for k, got in baked_points(path, [0, 8]).items():
+        one = {n: v[k : k + 1] if n != "betas" else v for n, v in params.items()}
+        expected = model(**one, dmpls=motion.dmpls[k : k + 1]).vertices[0]
+        # frame 0: the soft tissue exactly; posed frames: the skeleton is the one without soft tissue, so
+        # within the joint shift the report states
+        assert float(np.linalg.norm(got - expected, axis=1).max()) < (1e-5 if k == 0 else bound)
+
+
+def test_progress_counts_every_frame_of_each_pass(tmp_path, smpl):
+    motion = make_motion("smpl", seconds=0.5, seed=15)
+    seen: list[int] = []
+    save_usd(tmp_path / "p.usdc", smpl, motion, pose_correctives=True, progress=seen.append)
+    # preparing, pose features, writing the animation: each pass reports all frames
+    assert sum(seen) == 3 * motion.num_frames

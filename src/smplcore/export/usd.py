@@ -14,7 +14,8 @@ The stage (Y up, ``metersPerUnit`` 1, time codes = frames at the sequence's fram
   exactly; ``influences=k`` keeps the top k, renormalised), ``geomBindTransform`` identity, the UV map as
   the face-varying primvar ``st`` (indexed, so no seam split) when the model has one, and a
   ``UsdPreviewSurface`` material (with the texture when given);
-* ``BlendShape`` prims under the mesh, weights animated in the ``SkelAnimation``: the expression (when it
+* ``BlendShape`` prims under the mesh (with ``pointIndices`` when a shape moves under 3/4 of the vertices),
+  weights animated in the ``SkelAnimation``: the expression (when it
   varies), DMPL soft tissue (when given), and with ``pose_correctives=True`` one per pose-corrective
   feature (``pose_k``: the entries of ``R_j - I``), which makes the USD body the model's full forward;
   ``shape_blend_shapes=True`` adds the shape components (``beta_k``, weight 0).
@@ -381,7 +382,12 @@ def _write_stage(
         names, targets = [], []
         for shape_name, offsets_v, _ in shapes:
             blend = UsdSkel.BlendShape.Define(stage, f"/Body/Mesh/{shape_name}")
-            blend.CreateOffsetsAttr(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(offsets_v, dtype=np.float32)))
+            offsets32 = np.ascontiguousarray(offsets_v, dtype=np.float32)
+            moved = np.flatnonzero(np.any(offsets32 != 0, axis=1))
+            if len(moved) < 0.75 * len(offsets32):  # sparse (e.g. an expression moves the face only): exact
+                blend.CreatePointIndicesAttr(Vt.IntArray.FromNumpy(moved.astype(np.int32)))
+                offsets32 = np.ascontiguousarray(offsets32[moved])
+            blend.CreateOffsetsAttr(Vt.Vec3fArray.FromNumpy(offsets32))
             names.append(shape_name)
             targets.append(blend.GetPath())
         binding.CreateBlendShapesAttr(Vt.TokenArray(names))
