@@ -119,3 +119,21 @@ def test_usd_without_correctives_reports_them(tmp_path, capsys, fake_models):
     plain = without_correctives(model)
     got = skinned_points(out, [4])[4]
     assert float(np.abs(got - forward(plain, motion, 4)).max()) < 1e-4
+
+
+def test_format_joins_another_exporters_format_option():
+    """Another exporter may own ``--format`` (the suffix formats): the interchange formats become more of its
+    choices instead of a second option."""
+    import argparse
+
+    from smplcore.export.cli_usd import add_arguments, format_of
+
+    parser = argparse.ArgumentParser()
+    parser.add_argument("-o", "--output")
+    parser.add_argument("--format", choices=["glb", "fbx"], default=None, help="output format")
+    add_arguments(parser)
+    assert [a.dest for a in parser._actions].count("format") == 1
+    args = parser.parse_args(["-o", "body", "--format", "usdz"])
+    assert format_of(args) == "usdz" and str(args.output) == "body.usdz"  # OUT without a suffix gets it
+    assert format_of(parser.parse_args(["-o", "x.glb", "--format", "glb"])) is None
+    assert format_of(parser.parse_args(["-o", "x.usda"])) == "usd"

@@ -29,13 +29,19 @@ INTERCHANGE = {
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of the interchange formats on ``smplcore export``."""
-    parser.add_argument(
-        "--format",
-        choices=sorted(INTERCHANGE),
-        default=None,
-        help="usd (.usd/.usda/.usdc), usdz, smpl or blender-npz (.npz the SMPL-X Blender add-on imports); "
-        "default: from the suffix of OUT",
-    )
+    names = sorted(INTERCHANGE)
+    existing = next((a for a in parser._actions if "--format" in a.option_strings), None)
+    if existing is None:
+        parser.add_argument(
+            "--format",
+            choices=names,
+            default=None,
+            help="usd (.usd/.usda/.usdc), usdz, smpl or blender-npz (.npz the SMPL-X Blender add-on imports); "
+            "default: from the suffix of OUT (OUT without a suffix gets the format's)",
+        )
+    else:  # another exporter's --format (the suffix formats): these are more choices of it
+        existing.choices = [*(existing.choices or ()), *(n for n in names if n not in (existing.choices or ()))]
+        existing.help = f"{existing.help}; also {', '.join(names)} (blender-npz: the SMPL-X Blender add-on's .npz)"
     parser.add_argument(
         "--pose-correctives",
         action="store_true",
@@ -64,6 +70,9 @@ def format_of(args: argparse.Namespace) -> str | None:
     suffix = Path(args.output).suffix.lower()
     chosen = getattr(args, "format", None)
     if chosen in INTERCHANGE:
+        if not suffix:  # OUT without a suffix gets the format's
+            args.output = Path(args.output).with_suffix(INTERCHANGE[chosen][0])
+            return chosen
         if suffix not in INTERCHANGE[chosen]:
             raise ValueError(
                 f"-o/--output: --format {chosen} writes {'/'.join(INTERCHANGE[chosen])} files, got {args.output}"
