@@ -131,8 +131,11 @@ def test_format_joins_another_exporters_format_option():
     parser = argparse.ArgumentParser()
     parser.add_argument("-o", "--output")
     parser.add_argument("--format", choices=["glb", "fbx"], default=None, help="output format")
+    parser.add_argument("--pose-correctives", action="store_true", help=".fbx: pose correctives")
     add_arguments(parser)
     assert [a.dest for a in parser._actions].count("format") == 1
+    assert [a.dest for a in parser._actions].count("pose_correctives") == 1
+    assert parser.parse_args(["-o", "x.usd", "--pose-correctives"]).pose_correctives
     args = parser.parse_args(["-o", "body", "--format", "usdz"])
     assert format_of(args) == "usdz" and str(args.output) == "body.usdz"  # OUT without a suffix gets it
     assert format_of(parser.parse_args(["-o", "x.glb", "--format", "glb"])) is None

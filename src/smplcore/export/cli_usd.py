@@ -42,27 +42,41 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     else:  # another exporter's --format (the suffix formats): these are more choices of it
         existing.choices = [*(existing.choices or ()), *(n for n in names if n not in (existing.choices or ()))]
         existing.help = f"{existing.help}; also {', '.join(names)} (blender-npz: the SMPL-X Blender add-on's .npz)"
-    parser.add_argument(
+    _add_once(
+        parser,
         "--pose-correctives",
         action="store_true",
         help=".usd/.usdz: write the model's pose correctives as blend shapes (the full model; a larger file)",
     )
-    parser.add_argument(
+    _add_once(
+        parser,
         "--shape-blend-shapes",
         action="store_true",
         help=".usd/.usdz: add the shape components as blend shapes at weight 0",
     )
-    parser.add_argument(
+    _add_once(
+        parser,
         "--unit-weights",
         action="store_true",
         help=".usd/.usdz: blend-shape weights in [0, 1] (signed shapes as +/- pairs), for Blender's shape keys",
     )
-    parser.add_argument(
+    _add_once(
+        parser,
         "--up",
         choices=("y", "z"),
         default="y",
         help="blender-npz: y (the model's frame; import with anim_format SMPL-X) or z (like AMASS; anim_format AMASS)",
     )
+
+
+def _add_once(parser: argparse.ArgumentParser, flag: str, *, help: str, **kwargs: Any) -> None:
+    """Add ``flag``, or, when another exporter already has it (e.g. FBX's ``--pose-correctives``, the same
+    switch), say in its help that it applies here too."""
+    existing = next((a for a in parser._actions if flag in a.option_strings), None)
+    if existing is None:
+        parser.add_argument(flag, help=help, **kwargs)
+    else:
+        existing.help = f"{existing.help}; {help}"
 
 
 def format_of(args: argparse.Namespace) -> str | None:
