@@ -140,3 +140,35 @@ def test_format_joins_another_exporters_format_option():
     assert format_of(args) == "usdz" and str(args.output) == "body.usdz"  # OUT without a suffix gets it
     assert format_of(parser.parse_args(["-o", "x.glb", "--format", "glb"])) is None
     assert format_of(parser.parse_args(["-o", "x.usda"])) == "usd"
+
+
+def test_a_fit_result_exports_to_usd_and_smpl(tmp_path, fake_models):
+    """``smplcore.fit``'s result object (its ``params``, torch tensors or arrays, one row per fitted body) is an
+    export source: each fitted body a frame."""
+    torch = pytest.importorskip("torch")
+    from smplcore.export import save_smpl, save_usd
+    from smplcore.fit.result import FitResult
+    from test_export_usd import skinned_points
+
+    model = smplcore.BodyModel(fake_models["smpl_neutral_npz"])
+    rng = np.random.default_rng(4)
+    params = {
+        "betas": torch.tensor(rng.normal(size=(3, 10))),
+        "global_orient": torch.tensor(rng.normal(0, 0.3, (3, 3))),
+        "body_pose": torch.tensor(rng.normal(0, 0.3, (3, 69))),
+        "transl": torch.tensor(rng.normal(0, 0.3, (3, 3))),
+    }
+    arrays = {k: v.numpy() for k, v in params.items()}
+    arrays["betas"] = np.repeat(arrays["betas"][:1], 3, axis=0)  # one body shape: the first fit's
+    fit = FitResult(params={**params, "betas": torch.tensor(arrays["betas"])})
+    report = save_usd(tmp_path / "fit.usdc", model, fit, fps=10)
+    assert report.num_frames == 3 and report.fps == 10
+    plain = without_correctives(model)
+    for k, got in skinned_points(tmp_path / "fit.usdc", [0, 2]).items():
+        expected = plain(**{n: v[k : k + 1] for n, v in arrays.items()}).vertices[0]
+        assert float(np.abs(got - expected).max()) < 1e-4
+    save_smpl(tmp_path / "fit.smpl", fit, model, fps=10)
+    data = read_smpl(tmp_path / "fit.smpl")
+    assert (data.frame_count, data.fps, data.model_type) == (3, 10.0, "smpl")
+    expected = model(**arrays).vertices
+    assert float(np.abs(model(**data.to_motion().model_params("smpl")).vertices - expected).max()) < 1e-4

@@ -61,6 +61,22 @@ def load_input(path: str | Path, *, fps: float | None = None) -> Any:
     )
 
 
+def fit_result_params(source: Any) -> Any:
+    """A fit result (:class:`smplcore.fit.FitResult`, anything with a ``params`` dict of forward keywords) as a
+    dict of NumPy arrays, one row per fitted body = per frame; any other ``source`` as it is."""
+    params = getattr(source, "params", None)
+    if isinstance(source, Mapping) or not isinstance(params, Mapping):
+        return source
+    out: dict[str, Any] = {}
+    for key, value in params.items():
+        if value is None:
+            continue
+        if hasattr(value, "detach"):  # a torch tensor
+            value = value.detach().cpu().numpy()
+        out[key] = np.asarray(value, dtype=np.float64)
+    return out
+
+
 def _require_frame_rate(keys: Any, source: str | Path, fps: float | None) -> None:
     """The export's wording of the motion reader's rule: no frame rate in the motion and none given
     is an error (a guessed rate would silently change the animation's speed)."""

@@ -307,18 +307,20 @@ def save_smpl(path: str | Path, source: Any, model: Any = None, *, fps: float | 
     Parameters
     ----------
     path : the ``.smpl`` file to write.
-    source : a :class:`~smplcore.motion.Motion`, a motion / parameter / ``.smpl`` file, or a dict of model
-        keyword arrays (e.g. a fit result: ``betas``, ``global_orient``, ``body_pose``, ``transl``, ...).
+    source : a :class:`~smplcore.motion.Motion`, a motion / parameter / ``.smpl`` file, a dict of model
+        keyword arrays (``betas``, ``global_orient``, ``body_pose``, ``transl``, ...) or a
+        :class:`~smplcore.fit.FitResult` (one frame per fitted body).
     model : the body model a parameter set belongs to (a :class:`smplcore.BodyModel`; needed for parameter
         sets, whose PCA hands and mean hand pose it resolves into the absolute axis-angle poses the format
         holds). Motions need none.
     fps : frame rate (default: the motion's, 30 for a parameter set).
     """
-    from smplcore.export.inputs import load_input
+    from smplcore.export.inputs import fit_result_params, load_input
     from smplcore.motion import Motion
 
     if isinstance(source, (str, Path)):
         source = load_input(source, fps=fps)
+    source = fit_result_params(source)
     if isinstance(source, dict) and "poses" in source:
         from smplcore.export.inputs import _motion_input
 

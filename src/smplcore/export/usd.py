@@ -118,8 +118,9 @@ def save_usd(
     path : the file to write; the suffix picks the encoding (``.usda`` text, ``.usd``/``.usdc`` binary,
         ``.usdz`` a package for viewers such as Apple's Quick Look).
     model : a :class:`smplcore.BodyModel`.
-    source : a :class:`~smplcore.motion.Motion`, a motion or parameter file, a dict of parameter arrays
-        (one set or T frames), or an :class:`~smplcore.export.animation.Animation` (see
+    source : a :class:`~smplcore.motion.Motion`, a motion, parameter or ``.smpl`` file, a dict of parameter
+        arrays (one set or T frames), a :class:`~smplcore.fit.FitResult` (one frame per fitted body), or an
+        :class:`~smplcore.export.animation.Animation` (see
         :func:`~smplcore.export.animation.prepare_animation`).
     fps : frame rate (default: the motion's, 30 for parameter sets); the stage's time codes per second.
     pose_correctives : write the model's pose-corrective blend shapes (9 per non-root joint) with their
