@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from smplcore.errors import ShapeError
+from smplcore.model.params import fit_width
 
 
 def dmpls_of(model: Any, source: Any, frames: int) -> np.ndarray | None:
@@ -25,9 +26,7 @@ def dmpls_of(model: Any, source: Any, frames: int) -> np.ndarray | None:
     value = value.reshape(1, -1) if value.ndim < 2 else value
     if value.shape[0] not in (1, frames):
         raise ShapeError(f"dmpls: expected shape ({frames}, n) or (1, n), got {value.shape}")
-    value = value[:, :width]
-    if value.shape[1] < width:
-        value = np.concatenate([value, np.zeros((value.shape[0], width - value.shape[1]))], axis=1)
+    value = fit_width("dmpls", value, width)  # the one coefficient rule (smplcore.model.params)
     return np.broadcast_to(value, (frames, width)).copy()
 
 

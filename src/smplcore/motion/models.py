@@ -186,13 +186,15 @@ class Evaluator:
     def params(self, motion: Any, loaded: LoadedModel) -> dict[str, np.ndarray]:
         """The motion as keyword parameters of ``loaded`` (betas, expression and DMPL coefficients cut to the
         model's size; the motion's ``dmpls`` only for a model with DMPL blend shapes)."""
+        from smplcore.model.params import fit_width  # the one coefficient rule
+
         model = loaded.model
         params = motion.model_params(model.model_type, model.skeleton_joint_names)
-        params["betas"] = params["betas"][:, : model.num_betas]
+        params["betas"] = fit_width("betas", params["betas"], model.num_betas)
         if "expression" in params:
-            params["expression"] = params["expression"][:, : model.num_expression_coeffs]
+            params["expression"] = fit_width("expression", params["expression"], model.num_expression_coeffs)
         if model.num_dmpls and motion.dmpls is not None:
-            params["dmpls"] = np.asarray(motion.dmpls)[:, : model.num_dmpls]
+            params["dmpls"] = fit_width("dmpls", np.asarray(motion.dmpls), model.num_dmpls)
         return {k: np.ascontiguousarray(v, dtype=model.dtype) for k, v in params.items()}
 
     def run(
@@ -268,6 +270,7 @@ def _skeleton_joints(loaded: LoadedModel, params: dict[str, Any]) -> np.ndarray:
     computed once per chunk when the betas are shared by every frame.
     """
     from smplcore.engine import rest_joints, rodrigues, world_transforms
+    from smplcore.model.params import fit_width
 
     rig = loaded.model.rig
     torch_backend = loaded.backend == "torch"
@@ -289,12 +292,7 @@ def _skeleton_joints(loaded: LoadedModel, params: dict[str, Any]) -> np.ndarray:
 
     def coefficients(name: str, width: int) -> Any:
         value = params.get(name)
-        if value is None:
-            return zeros(1, width)
-        value = value[:, :width]
-        if value.shape[1] < width:
-            value = xp.concat([value, zeros(value.shape[0], width - value.shape[1])], axis=1)
-        return value
+        return zeros(1, width) if value is None else fit_width(name, value, width)
 
     def run() -> np.ndarray:
         blocks = [params[b.name] if b.name in params else zeros(batch, 3 * b.num_joints) for b in rig.pose_blocks]

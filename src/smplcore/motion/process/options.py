@@ -10,10 +10,12 @@ from typing import Any
 
 import numpy as np
 
+from smplcore.errors import SmplcoreError
+
 DEFAULT_EXCLUDE = ("shape.npz",)  # AMASS's per-subject shape files: betas and gender, no motion
 
 
-class ProcessError(ValueError):
+class ProcessError(SmplcoreError, ValueError):
     """The job cannot start: bad folders or settings, a locked or incompatible output folder."""
 
 
