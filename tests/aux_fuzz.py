@@ -386,16 +386,85 @@ def run(seed: int, seconds: float, per_input: float = 5.0, only: str | None = No
     return {"seed": seed, "readers": report, "total": total, "executed": executed}
 
 
+def run_fit_cli(per_input: float = 60.0) -> dict:
+    """``smplcore fit`` on the crafted files as INPUT (``.npy`` joints, ``.npz`` motion, ``.json`` COCO, specials)
+    and as ``--gmm`` / ``--vposer``; outcomes: ``clean`` (status 0), ``clear`` (status 1 or 2, stderr names
+    the file, no traceback), ``unclear``, ``raw`` (an exception out of ``main``), ``hang``."""
+    import contextlib
+
+    from smplcore.cli import main as cli_main
+
+    def alarm(signum, frame):
+        raise _Hang()
+
+    signal.signal(signal.SIGALRM, alarm)
+    counts = dict.fromkeys(("clean", "flagged", "clear", "unclear", "raw", "hang"), 0)
+    failures: list[dict] = []
+    names = "pelvis,left_hip,right_hip,spine1,left_knee,right_knee"
+    with tempfile.TemporaryDirectory() as tmpdir:
+        tmp = Path(tmpdir)
+        binary, text = _crafted_binary(tmp / "ran"), _crafted_text()
+        valid = tmp / "valid.npy"
+        valid.write_bytes(_npy(np.random.default_rng(0).normal(size=(3, 6, 3))))
+        cases: list[tuple[str, list[str], Path]] = []
+        for suffix, extra in ((".npy", ["--joint-names", names]), (".npz", []), (".json", ["--image-size", "64,48"])):
+            for label, data in {**(text if suffix == ".json" else binary), "valid": None}.items():
+                path = tmp / f"{label}{suffix}"
+                if data is None:
+                    if suffix != ".npy":
+                        continue
+                    path = valid
+                else:
+                    path.write_bytes(data)
+                cases.append((f"input {label}{suffix}", [str(path), *extra], path))
+            for label, path in _special(tmp, suffix, len(cases)).items():
+                cases.append((f"input {label}{suffix}", [str(path), *extra], path))
+        for option, suffix in (("--gmm", ".pkl"), ("--vposer", ".npz")):
+            for label, data in binary.items():
+                path = tmp / f"prior_{label}{suffix}"
+                path.write_bytes(data)
+                cases.append((f"{option} {label}", [str(valid), "--joint-names", names, option, str(path)], path))
+            for label, path in _special(tmp, suffix, len(cases)).items():
+                cases.append((f"{option} {label}", [str(valid), "--joint-names", names, option, str(path)], path))
+        for k, (label, argv, path) in enumerate(cases):
+            out = tmp / f"out_{k}.npz"
+            err = io.StringIO()
+            signal.setitimer(signal.ITIMER_REAL, per_input)
+            try:
+                with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+                    status = cli_main(["fit", *argv, "-o", str(out), "--no-progress"])
+                message = err.getvalue()
+                if status == 0:
+                    outcome = "clean"
+                else:
+                    named = path.name in message or str(path) in message or str(path.resolve()) in message
+                    outcome = "clear" if named and status in (1, 2) and "Traceback" not in message else "unclear"
+            except _Hang:
+                outcome, message = "hang", f"no answer after {per_input} s"
+            except SystemExit as exc:  # argparse
+                outcome, message = ("clear" if exc.code == 2 else "unclear"), err.getvalue()
+            except BaseException as exc:  # noqa: BLE001
+                outcome, message = "raw", f"{type(exc).__name__}: {exc}"
+            finally:
+                signal.setitimer(signal.ITIMER_REAL, 0)
+            counts[outcome] += 1
+            if outcome in ("unclear", "raw", "hang") and len(failures) < 10:
+                failures.append({"input": label, "outcome": outcome, "message": message[-300:]})
+        executed = (tmp / "ran").exists()
+    return {"inputs": len(cases), "counts": counts, "failures": failures, "executed": executed}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--seconds", type=float, default=4.0, help="time for the seeded mutations, all readers")
     parser.add_argument("--memory-mb", type=int, default=2048)
     parser.add_argument("--only", default=None, help="comma-separated reader names")
+    parser.add_argument("--fit-cli", action="store_true", help="the `smplcore fit` command instead of the readers")
     args = parser.parse_args()
     limit = args.memory_mb << 20
     resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
-    print(json.dumps(run(args.seed, args.seconds, only=args.only)))
+    print(json.dumps(run_fit_cli() if args.fit_cli else run(args.seed, args.seconds, only=args.only)))
 
 
 if __name__ == "__main__":
