@@ -106,7 +106,9 @@ def run_view(args: argparse.Namespace) -> int:
         )
     except MissingDependencyError as exc:
         return _missing("view", exc)
-    print(f"smplcore view: serving {len(viewer.bodies)} body(ies) at http://{args.host}:{viewer.port}/", flush=True)
+    url = viewer.url if args.host in ("127.0.0.1", "localhost") else viewer.url.replace("127.0.0.1", args.host)
+    print(f"smplcore view: serving {len(viewer.bodies)} body(ies) at {url}", flush=True)
+    print("  (open this address: it holds this session's token; other pages and web origins are refused)", flush=True)
     try:
         while True:
             time.sleep(3600)
