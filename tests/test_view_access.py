@@ -177,3 +177,17 @@ def test_origin_rules(origin, host, request_host, refused):
     gate = SessionGate(host=host, token="t0ken")
     assert (gate.reason_to_refuse(origin, "/t0ken", request_host, 8080) is not None) == refused
     assert gate.reason_to_refuse(origin, "/", request_host, 8080) == "no valid session token in the websocket URL"
+
+
+@pytest.mark.filterwarnings("ignore:Queued a GuiUpdateMessage on a closed connection")  # viser: moves after close
+def test_closing_during_a_burst_of_moves_stops_every_thread(tmp_path):
+    viewer = Viewer(port=free_port(), out_dir=tmp_path, lighting="simple")
+    slider = viewer.controls.betas[2]
+    with _connect(viewer, None, viewer.gate.token) as ws:
+        _send(ws, _camera())
+        _received(ws, 1.0)
+        for value in np.linspace(-3.0, 3.0, 500):
+            _move(ws, slider, float(value))
+        viewer.close()  # what Ctrl-C in `smplcore view` does
+    assert not viewer._refresher.is_alive() and not viewer._player.is_alive()
+    assert len(viewer._pending) <= 1  # merged: at most the last request was left undone
