@@ -169,6 +169,9 @@ def run_render(args: argparse.Namespace) -> int:
     except RuntimeError as exc:  # no offscreen OpenGL context: the message says how to fix it
         print(f"smplcore render: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # the video could not be written whole (VideoWriteError), or its folder made
+        print(f"smplcore render: error: {exc.strerror if isinstance(exc.strerror, str) else exc}", file=sys.stderr)
+        return 1
     finally:
         bar.close()
     print(report.summary())
