@@ -18,6 +18,8 @@ from smplcore.motion import save_motion  # noqa: E402
 from smplcore.view.video import VideoWriteError, decoded_frames, render_video  # noqa: E402
 from test_view_video import gl, walk  # noqa: E402, F401 - the fixture skips without offscreen OpenGL
 
+pytestmark = pytest.mark.usefixtures("gl")
+
 
 @contextlib.contextmanager
 def small_disk(path: Path, size: str = "64k"):
@@ -43,7 +45,7 @@ def _fill(disk: Path, leave: int) -> None:
 
 
 @pytest.mark.parametrize("suffix, leave", [(".gif", 24 << 10), (".mp4", 6 << 10)])
-def test_a_video_cut_short_by_a_full_disk_is_an_error_and_is_not_left(gl, tmp_path, suffix, leave):
+def test_a_video_cut_short_by_a_full_disk_is_an_error_and_is_not_left(tmp_path, suffix, leave):
     motion = walk(12)
     with small_disk(tmp_path / "disk") as disk:
         _fill(disk, leave)
@@ -57,7 +59,7 @@ def test_a_video_cut_short_by_a_full_disk_is_an_error_and_is_not_left(gl, tmp_pa
         assert sorted(p.name for p in disk.iterdir()) == ["filler"]
 
 
-def test_the_written_video_is_verified_and_renamed_into_place(gl, tmp_path, capsys):
+def test_the_written_video_is_verified_and_renamed_into_place(tmp_path, capsys):
     motion = walk(6)
     out = tmp_path / "ok.gif"
     report = render_video(motion, out, width=64, height=48, camera="fixed")
@@ -70,7 +72,7 @@ def test_the_written_video_is_verified_and_renamed_into_place(gl, tmp_path, caps
     assert decoded_frames(tmp_path / "broken.mp4") == 0
 
 
-def test_a_read_only_or_missing_output_folder_is_a_message(gl, tmp_path, capsys):
+def test_a_read_only_or_missing_output_folder_is_a_message(tmp_path, capsys):
     source = save_motion(walk(4), tmp_path / "walk.npz")
     blocker = tmp_path / "file"
     blocker.write_text("x")
