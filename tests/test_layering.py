@@ -47,10 +47,7 @@ KNOWN = {
     # the joint_regressors option loads keypoint regressors (issue 24: regressors through one public io entry)
     ("smplcore.frontend.setup", "smplcore.keypoints"),
     # auxiliary-file readers reached in io's internals (issue 24: one public io entry)
-    ("smplcore.fit.convert", "smplcore.io.budgets"),
-    ("smplcore.fit.vposer", "smplcore.io.containers"),
     ("smplcore.keypoints.regressor", "smplcore.io.containers"),
-    ("smplcore.keypoints.regressor", "smplcore.io.safe_pickle"),
     ("smplcore.motion.models", "smplcore.io.locate"),
     ("smplcore.motion.models", "smplcore.io.model_files"),
     ("smplcore.motion.process.preflight", "smplcore.io.locate"),

@@ -66,7 +66,7 @@ def load_pose_file(path: str | Path) -> np.ndarray:
     """Body pose(s) from a ``.npy``/``.npz``/``.txt`` file: (69,), (72,) (root first), or (N, 69|72)."""
     import io
 
-    from smplcore.io.aux_files import numeric_array, read_arrays, read_text
+    from smplcore.io import numeric_array, read_arrays, read_text
 
     path = Path(path)
     if path.suffix in (".npz", ".npy"):

@@ -33,7 +33,7 @@ def load_input(path: str | Path, *, fps: float | None = None) -> Any:
 
     ``fps`` is the frame rate of a motion that states none (see :func:`_motion_input`); a motion
     without a frame rate and without ``fps`` is refused."""
-    from smplcore.io.aux_files import numeric_array, read_json, read_npz
+    from smplcore.io import numeric_array, read_json, read_npz
     from smplcore.motion import load_motion
 
     path = Path(path)

@@ -224,7 +224,7 @@ def run(args: argparse.Namespace) -> int:
     if not source.exists():
         raise FileNotFoundError(f"{source}: no such file or folder")
     if not source.is_dir():  # a FIFO, device or socket: refused without opening it
-        from smplcore.io.aux_files import open_input
+        from smplcore.io import open_input
 
         open_input(source, "an input file (.json, .npy, .npz) or folder")[0].close()
     if _is_single(source):

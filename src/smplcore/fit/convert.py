@@ -65,7 +65,7 @@ def _source_vertices(model: Any, params: dict[str, Any]) -> tuple[np.ndarray, np
 
 def read_deformation_transfer(path: str | Path, num_source: int, num_target: int) -> Correspondence:
     """The vertex map of an official deformation-transfer pickle (``mtx`` or ``matrix``), read safely."""
-    from smplcore.io.aux_files import numeric_array, read_arrays
+    from smplcore.io import numeric_array, read_arrays
 
     path = Path(path)
     data = read_arrays(path, "a deformation-transfer file (.pkl)", sparse_stays_sparse=True)
@@ -181,7 +181,7 @@ def correspondence(
     name = hashlib.sha256(_mesh_key(source) + _mesh_key(target)).hexdigest()[:24] + ".npz"
     path = folder / name
     if path.is_file():
-        from smplcore.io.aux_files import numeric_array, read_npz
+        from smplcore.io import numeric_array, read_npz
 
         try:
             data = read_npz(path, "a cached correspondence (.npz)")

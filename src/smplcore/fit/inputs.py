@@ -112,7 +112,7 @@ def _camera(settings: FitSettings, size: tuple[float, float] | None = None):
 
 
 def _coco_image_sizes(path: Path) -> dict[Any, tuple[float, float]]:
-    from smplcore.io.aux_files import read_json
+    from smplcore.io import read_json
 
     doc = read_json(path, "a COCO keypoint file (.json)")
     sizes = {}
@@ -192,7 +192,7 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
         if len(fitted) < count:
             focal = focal[nearest]
     elif kind == "joints":
-        from smplcore.io.aux_files import numeric_array, read_arrays
+        from smplcore.io import numeric_array, read_arrays
 
         joints = numeric_array(path, read_arrays(path, "a joints file (.npy)"), kinds="iuf")
         if joints.ndim != 3 or joints.shape[-1] != 3:

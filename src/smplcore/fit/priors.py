@@ -159,7 +159,7 @@ class GMMPrior:
     def load(cls, path: str | os.PathLike[str]) -> GMMPrior:
         """Read ``gmm_08.pkl`` (a pickled dict with ``means``, ``covars``, ``weights``) through smplcore's
         allow-list unpickler (nothing in the file is run)."""
-        from smplcore.io.aux_files import numeric_array, read_arrays
+        from smplcore.io import numeric_array, read_arrays
 
         path = Path(path)
         if not path.exists() and not path.is_symlink():

@@ -154,7 +154,7 @@ class VPoserPrior:
     def load(cls, path: str | os.PathLike[str]) -> VPoserPrior:
         """Read VPoser v2 from a Lightning ``.ckpt``, a state_dict ``.pt``/``.npz``, or the ``V02_05/`` folder
         (its newest ``snapshots/*.ckpt``). Nothing in the file is run; torch is not needed."""
-        from smplcore.io.aux_files import read_arrays, read_checkpoint
+        from smplcore.io import read_arrays, read_checkpoint
 
         file = _checkpoint_file(Path(path))
         what = "a VPoser v2 checkpoint (.ckpt, .pt or .npz)"

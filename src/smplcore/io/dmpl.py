@@ -34,7 +34,7 @@ def load_dmpl(path: str | Path, num_vertices: int | None = None) -> np.ndarray:
         model's), NaN or infinite values, or anything the safe loader refuses.
     """
     from smplcore.errors import ModelFileError
-    from smplcore.io.aux_files import read_arrays
+    from smplcore.io import read_arrays
 
     path = Path(path)
     raw = read_arrays(path, "a DMPL file (dmpl.npz)")

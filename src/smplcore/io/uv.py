@@ -85,7 +85,7 @@ def load_uv_obj(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     ModelFileError
         when the file is missing, a face has no texture index, or an index is out of range.
     """
-    from smplcore.io.aux_files import read_text
+    from smplcore.io import read_text
 
     path = Path(path)
     if not path.exists() and not path.is_symlink():

@@ -58,7 +58,7 @@ def _convention_of(names: tuple[str, ...]) -> str | None:
 
 
 def _load_json(path: Path) -> Any:
-    from smplcore.io.aux_files import read_json
+    from smplcore.io import read_json
 
     return read_json(path, "a keypoint file (.json)")
 

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from smplcore.errors import ModelFileError, ShapeError
-from smplcore.io.budgets import MAX_ARRAY_ELEMENTS
+from smplcore.io import MAX_ARRAY_ELEMENTS
 from smplcore.keypoints.conventions import names as convention_names
 
 _MATRIX_KEYS = ("J_regressor", "regressor", "matrix", "J_regressor_extra", "J_regressor_h36m", "weights")
@@ -174,7 +174,7 @@ class Regressor:
 
 
 def _read_matrix(path: Path, key: str | None) -> tuple[Any, tuple[str, ...] | None]:
-    from smplcore.io.aux_files import read_arrays
+    from smplcore.io import read_arrays
 
     value = read_arrays(path, "a regressor file (.npy, .npz or .pkl)")
     try:
@@ -214,7 +214,7 @@ def _pick_matrix(path: Path, value: Any, key: str | None) -> tuple[Any, tuple[st
     else:
         matrix = value
     if not _is_sparse(matrix):
-        from smplcore.io.aux_files import numeric_array
+        from smplcore.io import numeric_array
 
         matrix = numeric_array(path, matrix, key, kinds="biuf")
         if matrix.dtype.kind not in "fiu":

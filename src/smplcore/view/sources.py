@@ -117,7 +117,7 @@ def read_bvh(path: str | Path) -> BvhMotion:
     MissingDependencyError
         when bvhio is not installed.
     """
-    from smplcore.io.aux_files import open_input
+    from smplcore.io import open_input
     from smplcore.view._deps import require
 
     bvhio = require("bvhio", "reading .bvh motions")
@@ -212,7 +212,7 @@ def load_source(path: str | Path) -> Source:
         naming the file.
     """
     from smplcore.export.animation import load_input
-    from smplcore.io.aux_files import open_input
+    from smplcore.io import open_input
     from smplcore.motion import Motion
 
     path = Path(path)
@@ -239,7 +239,7 @@ def load_keypoints(path: str | Path) -> np.ndarray:
     ShapeError, ModelFileError
         naming the file and the shape found.
     """
-    from smplcore.io.aux_files import numeric_array, read_arrays
+    from smplcore.io import numeric_array, read_arrays
 
     path = Path(path)
     if not path.exists() and not path.is_symlink():
