@@ -9,12 +9,12 @@ from __future__ import annotations
 import socket
 import time
 
-import msgspec
 import numpy as np
 import pytest
 
 viser = pytest.importorskip("viser", reason="the viewer needs viser: pip install 'smplcore[view]'")
-websockets_sync = pytest.importorskip("websockets.sync.client")
+websockets_sync = pytest.importorskip("websockets.sync.client")  # viser's dependencies, as msgspec
+msgspec = pytest.importorskip("msgspec")
 
 from viser import _messages  # noqa: E402
 
