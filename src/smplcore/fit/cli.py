@@ -174,7 +174,7 @@ _MODEL: dict[str, Any] = {}
 def fit_one(source: str, output: str, settings: Any) -> dict[str, Any]:
     """Fit ``source`` and write ``output`` atomically; never raises for a bad input (a manifest entry)."""
     from smplcore.fit.inputs import build_model, fit_input
-    from smplcore.motion.process.task import atomic_write
+    from smplcore.jobs import atomic_write
 
     start = time.perf_counter()
     entry: dict[str, Any] = {"input": source, "output": output, "status": "skipped"}
@@ -357,7 +357,7 @@ def _run_ray(todo: list, settings: Any, address: str, workers: int, entries: lis
 
 def _remove_partial(folders: set[Path], pids: set[int | None]) -> None:
     """Remove the temporary files of ended workers (their outputs were never renamed into place)."""
-    from smplcore.motion.process.task import TMP_SUFFIX
+    from smplcore.jobs import TMP_SUFFIX
 
     for folder in folders:
         for pid in pids:
@@ -404,7 +404,7 @@ def _report(entries: list[dict[str, Any]], manifest: Path | None, quiet: bool = 
 
 def _write_manifest(entries: list[dict[str, Any]], manifest: Path | None) -> bool:
     """Write the manifest; False (with a message) when it cannot be written (the outputs stay)."""
-    from smplcore.motion.process.task import atomic_write
+    from smplcore.jobs import atomic_write
 
     if manifest is None:
         return True

@@ -291,7 +291,7 @@ def open_model_regressor(convention: str) -> Regressor:
     Built by ``tools/build_open_regressors.py`` from the open model's named vertices and its joint
     regressor; not Human3.6M's learned regressor or any official SMPL file (see docs/keypoints.md).
     """
-    from smplcore.io.containers import read_container
+    from smplcore.io import read_container
     from smplcore.keypoints.conventions import convention_key
 
     key = convention_key(convention)
