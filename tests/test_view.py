@@ -180,6 +180,8 @@ def test_age_slider_rebuilds_the_open_model_at_that_age_keeping_shape_and_pose(v
     mesh = np.array(viewer._nodes[0]["mesh"].vertices)
     np.testing.assert_allclose(mesh, expected, atol=1e-5)
     assert np.ptp(mesh[:, 1]) < 1.3  # a six-year-old, not the adult
+    c.age.value = float("nan")  # a bad value from a client leaves the body as it was
+    assert viewer.ages[0] == 6.0 and c.age.value == 6.0
     c.gender.value = "female"  # another gender keeps the age
     assert viewer.ages[0] == 6.0 and c.age.value == 6.0
     np.testing.assert_allclose(
