@@ -6,7 +6,7 @@ import dataclasses
 
 import numpy as np
 
-from smplcore.io.open_ages import AGE_RANGE, age_offsets
+from smplcore.io import AGE_RANGE, age_offsets
 from smplcore.model import Rig
 
 __all__ = ["AgeAxis"]

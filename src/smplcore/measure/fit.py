@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import lsq_linear
 
-from smplcore.io.open_ages import age_for_stature
+from smplcore.io import age_for_stature
 from smplcore.measure._aging import AgeAxis
 from smplcore.measure._rig import _rig_of
 from smplcore.measure.api import rest_body
