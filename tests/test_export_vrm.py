@@ -365,3 +365,34 @@ def test_three_vrm_poses_the_avatar_in_chromium(open_files, browser, tmp_path):
 
     Image.fromarray(shot).save(tmp_path / "three_vrm.png")
     assert body_pixels(shot) > 0.03, f"no body in the screenshot {tmp_path / 'three_vrm.png'}"
+
+
+def test_cli_writes_vrm_vrma_and_engine_glb(tmp_path, capsys, fake_models):
+    from smplcore.cli import main
+    from smplcore.motion import save_motion
+
+    motion = make_motion("smplh", seconds=0.5, fps=30.0, num_betas=16)
+    save_motion(motion, tmp_path / "walk.npz")
+    model = ["--model-path", str(fake_models["smplh_female_npz"])]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["export", str(tmp_path / "walk.npz"), "-o", str(tmp_path / "a.vrm"), *model]) == 0
+        assert main(["export", str(tmp_path / "walk.npz"), "-o", str(tmp_path / "a.vrma"), *model]) == 0
+        assert main(["export", str(tmp_path / "walk.npz"), "-o", str(tmp_path / "u.glb"), "--engine", "unreal"]) == 0
+    out = capsys.readouterr().out
+    assert f"wrote {tmp_path / 'a.vrm'} (vrm" in out and "15 frame(s) at 30 fps, 52 joints" in out
+    assert "engine: unreal (root bone 'root', lengths x100" in out
+    bones = GlbReader(tmp_path / "a.vrm").gltf.extensions["VRMC_vrm"]["humanoid"]["humanBones"]
+    assert len(bones) == 52 and "leftLittleDistal" in bones  # SMPL+H: body and 30 finger bones
+    assert (
+        GlbReader(tmp_path / "a.vrm")
+        .gltf.extensions["VRMC_vrm"]["meta"]["otherLicenseUrl"]
+        .startswith("https://mano.is.tue.mpg.de")
+    )
+    clip = GlbReader(tmp_path / "a.vrma")
+    assert len(clip.gltf.animations[0].channels) == 52 + 1  # every joint a bone, plus the hips translation
+    for name in ("a.vrm", "a.vrma", "u.glb"):
+        report = validate(tmp_path / name)
+        assert report["issues"]["numErrors"] == 0 and report["issues"]["numWarnings"] == 0, issues(report, 1)
+    assert main(["export", str(tmp_path / "walk.npz"), "-o", str(tmp_path / "b.vrm"), "--engine", "unity"]) != 0
+    assert "--engine/--unit-scale: engine conventions apply to .glb files, not '.vrm'" in capsys.readouterr().err

@@ -9,6 +9,9 @@ Examples::
     smplcore export walk.npz -o walk.glb --texture skin.png    # UVs (open model, SMPL-X) + a texture
     smplcore export walk.npz -o walk.glb --model-path models/ --model-type smplh
     smplcore export params.npz -o body.glb                # one parameter set (betas, body_pose, ...)
+    smplcore export walk.npz -o walk.glb --engine unreal  # root bone, centimetres, feet on the ground
+    smplcore export walk.npz -o avatar.vrm                # VRM 1.0 avatar (T-pose) of the motion's body
+    smplcore export walk.npz -o walk.vrma                 # VRM animation clip any VRM avatar plays
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ import numpy as np
 
 from smplcore.cli_options import model_file_options
 
-FORMATS = (".obj", ".ply", ".glb", ".bvh")
+FORMATS = (".obj", ".ply", ".glb", ".bvh", ".vrm", ".vrma")
 _HAND_BLOCKS = ("left_hand_pose", "right_hand_pose", "hand_pose")
 
 
@@ -45,7 +48,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         type=Path,
         required=True,
         metavar="OUT",
-        help="output file: .obj, .ply (one posed frame), .glb (rigged + animated) or .bvh",
+        help="output file: .obj, .ply (one posed frame), .glb (rigged + animated), .bvh, .vrm (VRM 1.0 avatar) "
+        "or .vrma (VRM animation)",
     )
     parser.add_argument("--model-path", default=None, help="model file or folder (default: the open model)")
     parser.add_argument(
@@ -116,6 +120,19 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         choices=(4, 8),
         default=4,
         help=".glb: skinning weights kept per vertex (default: 4, what every viewer reads)",
+    )
+    parser.add_argument(
+        "--engine",
+        choices=("unreal", "unity"),
+        default=None,
+        help=".glb: game-engine conventions (a root bone, Unreal in centimetres, feet on the ground, 4 "
+        "influences, morph weights every frame); default: the exact export",
+    )
+    parser.add_argument(
+        "--unit-scale",
+        type=float,
+        default=None,
+        help=".glb with --engine: lengths multiplier (default: 100 for unreal, 1 for unity)",
     )
     parser.add_argument(
         "--bvh-scale",
@@ -229,6 +246,8 @@ def run(args: argparse.Namespace) -> int:
     suffix = out.suffix.lower()
     if suffix not in FORMATS:
         raise ValueError(f"-o/--output: unsupported suffix {out.suffix!r}; expected one of {', '.join(FORMATS)}")
+    if (args.engine is not None or args.unit_scale is not None) and suffix != ".glb":
+        raise ValueError(f"--engine/--unit-scale: engine conventions apply to .glb files, not {out.suffix!r}")
     if args.texture is not None and suffix not in (".obj", ".glb"):
         raise ValueError(f"--texture: textures are written to .obj and .glb files, not {out.suffix!r}")
     source = load_input(args.input, fps=args.fps)  # the rate of a motion that states none
@@ -263,7 +282,7 @@ def run(args: argparse.Namespace) -> int:
             report_warnings: list[str] = []
         else:
             count = source.num_frames if isinstance(source, Motion) else _count(source)
-            passes = 2 + (suffix == ".glb" and bool(model.has_pose_correctives))
+            passes = 2 + (suffix == ".glb" and bool(model.has_pose_correctives)) - (suffix in (".vrm", ".vrma"))
             bar = _progress_bar(count * passes, args.no_progress or count < 100)
             update = None if bar is None else bar.update
             try:
@@ -279,7 +298,13 @@ def run(args: argparse.Namespace) -> int:
                         vertex_colors=colors,
                         texture=args.texture,
                         progress=update,
+                        engine=args.engine,
+                        unit_scale=args.unit_scale,
                     )
+                elif suffix in (".vrm", ".vrma"):
+                    from smplcore.export.vrm import save_vrm, save_vrma
+
+                    report = save_vrm(out, model, anim) if suffix == ".vrm" else save_vrma(out, model, anim)
                 else:
                     report = save_bvh(out, model, anim, scale=args.bvh_scale, euler=args.euler, progress=update)
             finally:
