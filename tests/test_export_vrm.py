@@ -63,6 +63,19 @@ def open_files(tmp_path_factory):
     return model, motion, folder / "open.vrm", folder / "walk.vrma", avatar, clip
 
 
+@pytest.fixture(scope="module")
+def smplx_files(tmp_path_factory, fake_models):
+    """SMPL-X (fake file: its fingers' rest directions are far from the T-pose) with a motion of every joint."""
+    model = smplcore.BodyModel(fake_models["smplx_neutral_npz"], use_pca=False, flat_hand_mean=True, num_betas=10)
+    motion = make_motion("smplx", seconds=0.5, fps=30.0, num_betas=10)
+    folder = tmp_path_factory.mktemp("vrm-smplx")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        save_vrm(folder / "x.vrm", model, motion)
+        save_vrma(folder / "x.vrma", model, motion)
+    return model, motion, folder / "x.vrm", folder / "x.vrma"
+
+
 def test_humanoid_map_of_every_body_model(fake_models):
     names = open_model().skeleton_joint_names
     assert sorted(humanoid_bones(names)) == OPEN_BONES
@@ -140,10 +153,11 @@ def test_rest_is_the_vrm_tpose(open_files, fake_models):
     _, _, vrm, _, _, _ = open_files
     reader = GlbReader(vrm)
     pos = _world_positions(reader)
-    verts = reader.array(reader.gltf.meshes[0].primitives[0].attributes.POSITION)
+    verts = reader.skinned_vertices(0)  # the avatar at rest, as viewers show it
     assert abs(verts[:, 1].min()) < 1e-6  # soles on y = 0
     np.testing.assert_allclose(pos["pelvis"][[0, 2]], 0.0, atol=1e-7)
-    assert all(n.rotation is None for n in reader.gltf.nodes)  # identity rest rotations
+    turned = {n.name for n in reader.gltf.nodes if n.rotation is not None}  # rest rotations: the T-pose
+    assert turned == {f"{s}_{j}" for s in ("left", "right") for j in ("shoulder", "elbow", "wrist")}
     for side, sign in (("left", 1.0), ("right", -1.0)):  # arms straight along +X (left) / -X (right)
         chain = [pos[f"{side}_{j}"] for j in ("shoulder", "elbow", "wrist", "hand")]
         for a, b in zip(chain[:-1], chain[1:], strict=True):
@@ -212,9 +226,26 @@ def test_avatar_posed_by_the_clip_equals_the_model(open_files):
         err = np.abs(posed.skinned_vertices(k) - (out.vertices[0][ids] + offset)).max()
         worst = max(worst, err)
         np.testing.assert_allclose(posed.joint_positions(k), out.joints[0, :24] + offset, atol=2e-5)
-    assert worst < 1e-4, f"vertices off by {worst * 1000:.3f} mm"  # measured 0.04 mm (float32 files and model)
+    assert worst < 1e-5, f"vertices off by {worst * 1000:.4f} mm"  # float32 files and model
     assert clip.num_frames == motion.num_frames and clip.num_joints == 22
     assert avatar.top4_max_error == 0.0  # the open model has at most 4 weights per vertex
+
+
+def test_smplx_avatar_posed_by_the_clip_equals_the_model(smplx_files):
+    model, motion, vrm, vrma = smplx_files
+    posed = _Posed(vrm, vrma)
+    offset = np.array(posed.gltf.asset.extras["smplcore"]["offset_m"])
+    plain = without_correctives(model)
+    params = motion.model_params("smplx", model.skeleton_joint_names)
+    eyes = [i for i, n in enumerate(model.skeleton_joint_names) if "eye" in n]
+    params["leye_pose"] = params["reye_pose"] = np.zeros_like(params["leye_pose"])  # VRM animates eyes by look-at
+    ids = _written_vertices(posed, model)
+    for k in (0, 7, motion.num_frames - 1):
+        out = plain(**{n: v[k : k + 1] if n != "betas" else v for n, v in params.items()})
+        err = np.abs(posed.skinned_vertices(k) - (out.vertices[0][ids] + offset)).max()
+        assert err < 1e-5, f"frame {k}: {err * 1000:.4f} mm"
+        np.testing.assert_allclose(posed.joint_positions(k), out.joints[0, :55] + offset, atol=1e-5)
+    assert len(eyes) == 2
 
 
 def _written_vertices(reader, model):
@@ -342,6 +373,25 @@ class _QuietHandler(http.server.SimpleHTTPRequestHandler):
 def body_pixels(img: np.ndarray) -> float:
     """Share of the picture that is not the white background: the lit body."""
     return float((img.astype(int).min(axis=-1) < 235).mean())
+
+
+def test_three_vrm_retargets_smplx_fingers_in_chromium(smplx_files, browser, tmp_path):
+    """SMPL-X: three-vrm resolves all 55 bones; three-vrm-animation turns the clip's rotations into the
+    avatar's normalised bones through the rest rotations and back: joints equal the model's."""
+    model, motion, vrm, vrma = smplx_files
+    frame = 9
+    result, _, console = three_vrm_pose(browser, tmp_path, vrm, vrma, frame, motion.fps)
+    assert "error" not in result, result.get("error")
+    assert len(result["bones"]) == 55 and "rightLittleDistal" in result["bones"]
+    assert not [m for m in console if m.startswith(("error", "pageerror", "warning"))], console
+    offset = np.array(GlbReader(vrm).gltf.asset.extras["smplcore"]["offset_m"])
+    params = motion.model_params("smplx", model.skeleton_joint_names)
+    params["leye_pose"] = params["reye_pose"] = np.zeros_like(params["leye_pose"])
+    out = model(**{n: v[frame : frame + 1] if n != "betas" else v for n, v in params.items()})
+    joints = out.joints[0] + offset
+    by_bone = {HUMAN_BONES[n]: joints[j] for j, n in enumerate(model.skeleton_joint_names)}
+    for bone, where in result["bones"].items():
+        np.testing.assert_allclose(where, by_bone[bone], atol=1e-4, err_msg=bone)
 
 
 def test_three_vrm_poses_the_avatar_in_chromium(open_files, browser, tmp_path):

@@ -13,12 +13,14 @@ Both are glTF 2.0 binaries with one extension at the root:
 
 The rest pose is the **VRM T-pose** (VRM 1.0 ``tpose.md``): Y up, facing +Z, arms, hands and the four
 fingers straight along +X (left) / -X (right), thumbs between X and +Z at 45 degrees, parallel to the
-ground; the soles on y = 0 and the rest pelvis at x = z = 0. SMPL's own rest pose (arms slightly down,
-fingers curled as the model has them) is turned into it by :func:`vrm_tpose`: swing rotations ``C_j``
-(world) of the arm and finger joints, baked into the rest mesh by linear blend skinning; every node keeps
-an identity rest rotation (what VRM animation expects). A motion's local rotations ``R_j`` (relative to
-SMPL's rest) become ``C_parent R_j C_j^T`` relative to the T-pose, so the avatar posed by the clip shows
-exactly the model's linear blend skinning (no pose correctives, as in :mod:`.gltf`).
+ground; the soles on y = 0 and the rest pelvis at x = z = 0. :func:`vrm_tpose` finds the swing rotations
+``C_j`` (world) of the arm, hand and finger joints that turn SMPL's rest pose (arms slightly down, fingers
+as the model has them) into it. The mesh keeps SMPL's rest pose as its bind pose (inverse bind matrices
+``translate(-joint)``) while the nodes' rest transforms are the T-pose (local rotations
+``C_parent^T C_j``), so viewers show the T-pose at rest, and a node set to SMPL's local rotation ``R_j``
+shows exactly the model's linear blend skinning -- no re-binding error. A ``.vrma`` holds those ``R_j`` on
+nodes with the same rest; players retarget them through the rest rotations (three-vrm-animation turns them
+into ``C_parent R_j C_j^T`` relative to the T-pose, what any avatar understands).
 
 What VRM cannot hold is said: joints that are no VRM humanoid bone (SMPL's ``left_hand``/``right_hand``;
 the eyes, which VRM animation drives by look-at only) are not animated in a ``.vrma`` (their rotation is
@@ -256,24 +258,34 @@ def _rest_of(anim: Animation) -> _Rest:
     return _Rest(rot, joints + offset, verts + offset, offset)
 
 
-def _retarget(anim: Animation, rest: _Rest) -> np.ndarray:
-    """(T, J, 3, 3) local rotations relative to the T-pose: ``C_parent R_j C_j^T``."""
+def _rest_local_rotations(anim: Animation, rest: _Rest) -> np.ndarray:
+    """(J, 3, 3) local rest rotation of each node, ``C_parent^T C_j``: the T-pose as SMPL local rotations."""
     parent_rot = np.concatenate([np.eye(3)[None], rest.rotations[anim.parents[1:]]], axis=0)
-    return np.einsum("jab,tjbc,jdc->tjad", parent_rot, anim.rotations, rest.rotations)
+    return np.einsum("jba,jbc->jac", parent_rot, rest.rotations)
 
 
 def _skeleton_nodes(gltf: Any, anim: Animation, rest: _Rest) -> int:
-    """Node 0 ``root`` at the origin, then joint j as node j + 1 (identity rest rotations); returns the
-    node index of joint 0."""
+    """Node 0 ``root`` at the origin, then joint j as node j + 1 in the T-pose: translation ``joint - parent``
+    of SMPL's rest (the pelvis: its T-pose position), rotation ``C_parent^T C_j``; returns the node of joint 0."""
     import pygltflib
+    from scipy.spatial.transform import Rotation
 
     gltf.nodes.append(pygltflib.Node(name="root", children=[1]))
-    offsets = rest.joints.copy()
-    offsets[1:] -= rest.joints[anim.parents[1:]]
+    offsets = anim.offsets.copy()
+    offsets[0] = rest.joints[0]
+    local = _rest_local_rotations(anim, rest)
+    quats = Rotation.from_matrix(local).as_quat()
     for j, name in enumerate(anim.joint_names):
         children = [int(c) + 1 for c in np.flatnonzero(anim.parents == j)]
+        turned = not np.allclose(local[j], np.eye(3), rtol=0, atol=1e-12)
+        q = quats[j] * (1.0 if quats[j, 3] >= 0 else -1.0)
         gltf.nodes.append(
-            pygltflib.Node(name=name, translation=[float(v) for v in offsets[j]], children=children or None)
+            pygltflib.Node(
+                name=name,
+                translation=[float(v) for v in offsets[j]],
+                rotation=[float(v) for v in q / np.linalg.norm(q)] if turned else None,
+                children=children or None,
+            )
         )
     return 1
 
@@ -364,10 +376,7 @@ def save_vrm(
 
     joints_idx, values, _ = top_k_weights(anim.weights, 4)
     # the T-pose is anim's rest posed by world rotations C_j: its local rotations are C_parent^T C_j
-    parent_rot = np.concatenate([np.eye(3)[None], rest.rotations[anim.parents[1:]]], axis=0)
-    tpose_anim = dataclasses.replace(
-        anim, rotations=np.einsum("jba,jbc->jac", parent_rot, rest.rotations)[None], transl=np.zeros((1, 3))
-    )
+    tpose_anim = dataclasses.replace(anim, rotations=_rest_local_rotations(anim, rest)[None], transl=np.zeros((1, 3)))
     err = truncation_error(tpose_anim, joints_idx, values)
 
     gltf = pygltflib.GLTF2()
@@ -377,11 +386,12 @@ def save_vrm(
     num_joints = anim.num_joints
 
     ids = np.arange(anim.rest_vertices.shape[0]) if split is None else split.vertex_ids
+    bind = anim.rest_vertices + rest.offset  # the bind pose: SMPL's rest (the nodes' rest shows the T-pose)
     faces = np.asarray(anim.faces) if split is None else split.faces
     attributes: dict[str, int] = {
-        "POSITION": build.accessor(rest.vertices[ids], FLOAT, target=ARRAY_BUFFER, bounds=True, name="positions"),
+        "POSITION": build.accessor(bind[ids], FLOAT, target=ARRAY_BUFFER, bounds=True, name="positions"),
         "NORMAL": build.accessor(
-            _vertex_normals(rest.vertices, np.asarray(anim.faces))[ids], FLOAT, target=ARRAY_BUFFER, name="normals"
+            _vertex_normals(bind, np.asarray(anim.faces))[ids], FLOAT, target=ARRAY_BUFFER, name="normals"
         ),
     }
     if split is not None:
@@ -416,7 +426,7 @@ def save_vrm(
         )
     )
     ibm = np.tile(np.eye(4), (num_joints, 1, 1))
-    ibm[:, :3, 3] = -rest.joints
+    ibm[:, :3, 3] = -(anim.rest_joints + rest.offset)
     gltf.skins.append(
         pygltflib.Skin(
             name="skeleton",
@@ -515,7 +525,6 @@ def save_vrma(
     bones = humanoid_bones(anim.joint_names)
     rest = _rest_of(anim)
     notes = list(anim.notes)
-    local = _retarget(anim, rest)
     animated = {b: j for b, j in bones.items() if b not in _LOOK_AT_BONES}
     dropped = [j for j in range(anim.num_joints) if j not in animated.values()]
     if dropped:
@@ -541,7 +550,7 @@ def save_vrma(
     frames = anim.num_frames
     times = (np.arange(frames, dtype=np.float64) / anim.fps).astype(np.float32)
     time_accessor = build.accessor(times, FLOAT, bounds=True, name="time")
-    quats = quaternions(local).astype(np.float32)
+    quats = quaternions(anim.rotations).astype(np.float32)  # SMPL's local rotations: nodes rest in SMPL's frames
     samplers: list[Any] = []
     channels: list[Any] = []
 
