@@ -430,7 +430,7 @@ def test_cli_writes_vrm_vrma_and_engine_glb(tmp_path, capsys, fake_models):
         assert main(["export", str(tmp_path / "walk.npz"), "-o", str(tmp_path / "a.vrma"), *model]) == 0
         assert main(["export", str(tmp_path / "walk.npz"), "-o", str(tmp_path / "u.glb"), "--engine", "unreal"]) == 0
     out = capsys.readouterr().out
-    assert f"wrote {tmp_path / 'a.vrm'} (vrm" in out and "15 frame(s) at 30 fps, 52 joints" in out
+    assert f"wrote {tmp_path / 'a.vrm'} (vrm" in out and "the rest pose, 52 joints" in out
     assert "engine: unreal (root bone 'root', lengths x100" in out
     bones = GlbReader(tmp_path / "a.vrm").gltf.extensions["VRMC_vrm"]["humanoid"]["humanBones"]
     assert len(bones) == 52 and "leftLittleDistal" in bones  # SMPL+H: body and 30 finger bones
@@ -446,3 +446,25 @@ def test_cli_writes_vrm_vrma_and_engine_glb(tmp_path, capsys, fake_models):
         assert report["issues"]["numErrors"] == 0 and report["issues"]["numWarnings"] == 0, issues(report, 1)
     assert main(["export", str(tmp_path / "walk.npz"), "-o", str(tmp_path / "b.vrm"), "--engine", "unity"]) != 0
     assert "--engine/--unit-scale: engine conventions apply to .glb files, not '.vrm'" in capsys.readouterr().err
+
+
+def test_the_clip_plays_on_another_avatar(open_files, smplx_files, browser, tmp_path):
+    """The open model's clip on the SMPL-X avatar (another skeleton and body): three-vrm-animation retargets it
+    through both T-poses, so the arm bones (straight along X in both rest poses) point where the open model's do."""
+    model, motion, _, vrma, _, _ = open_files
+    _, _, other_vrm, _ = smplx_files
+    frame = 12
+    result, shot, console = three_vrm_pose(browser, tmp_path, other_vrm, vrma, frame, motion.fps)
+    assert "error" not in result, result.get("error")
+    assert not [m for m in console if m.startswith(("error", "pageerror", "warning"))], console
+    params = motion.model_params("open", model.skeleton_joint_names)
+    joints = model(**{n: v[frame : frame + 1] if n != "betas" else v for n, v in params.items()}).joints[0]
+    at = {HUMAN_BONES[n]: joints[j] for j, n in enumerate(model.skeleton_joint_names) if n in HUMAN_BONES}
+    bones = {k: np.asarray(v) for k, v in result["bones"].items()}
+    for side in ("left", "right"):
+        for a, b in (("UpperArm", "LowerArm"), ("LowerArm", "Hand")):
+            want = at[side + b] - at[side + a]
+            got = bones[side + b] - bones[side + a]
+            cosine = float(want @ got / np.linalg.norm(want) / np.linalg.norm(got))
+            assert cosine > 1 - 1e-6, f"{side}{a}: {np.degrees(np.arccos(min(cosine, 1.0))):.3f} deg apart"
+    assert body_pixels(shot) > 0.01

@@ -192,8 +192,9 @@ class ExportReport:
         """A few human-readable lines."""
         size = self.file_size
         human = f"{size / 1e6:.2f} MB" if size >= 1e6 else f"{size / 1e3:.1f} kB"
+        what = f"{self.num_frames} frame(s) at {self.fps:g} fps" if self.num_frames else "the rest pose"
         lines = [
-            f"wrote {self.path} ({self.format}, {human}): {self.num_frames} frame(s) at {self.fps:g} fps, "
+            f"wrote {self.path} ({self.format}, {human}): {what}, "
             f"{self.num_joints} joints" + (f", {self.num_vertices} vertices" if self.num_vertices else "")
         ]
         if self.top4_max_error is not None and self.top4_mean_error is not None:
