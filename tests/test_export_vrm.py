@@ -256,6 +256,20 @@ def _written_vertices(reader, model):
     return ids
 
 
+def test_textured_avatar(tmp_path):
+    model = open_model()
+    report = save_vrm(tmp_path / "t.vrm", model, texture="uv-grid")
+    gltf = GlbReader(tmp_path / "t.vrm").gltf
+    assert gltf.images[0].mimeType == "image/png"
+    assert gltf.materials[0].pbrMetallicRoughness.baseColorTexture.index == 0
+    assert gltf.meshes[0].primitives[0].attributes.TEXCOORD_0 is not None
+    result = validate(tmp_path / "t.vrm")
+    assert result["issues"]["numErrors"] == 0 and result["issues"]["numWarnings"] == 0, issues(result, 1)
+    assert report.num_vertices == 14517  # split along the UV seams
+    with pytest.raises(ValueError, match="texture: a texture needs the model's UV map"):
+        save_vrm(tmp_path / "u.vrm", model, texture="uv-grid", uv=False)
+
+
 def test_dropped_rotations_are_reported(tmp_path):
     model = open_model()
     motion = make_motion("smpl", seconds=0.5)

@@ -106,7 +106,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--texture",
         default=None,
         metavar="FILE",
-        help=".obj/.glb: image drawn through the model's UV map (the open model, SMPL-X; the UVs are written "
+        help=".obj/.glb/.vrm: image drawn through the model's UV map (the open model, SMPL-X; the UVs are written "
         "whenever the model has them), or 'uv-grid' for a generated grid that shows the mapping",
     )
     parser.add_argument(
@@ -248,8 +248,10 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"-o/--output: unsupported suffix {out.suffix!r}; expected one of {', '.join(FORMATS)}")
     if (args.engine is not None or args.unit_scale is not None) and suffix != ".glb":
         raise ValueError(f"--engine/--unit-scale: engine conventions apply to .glb files, not {out.suffix!r}")
-    if args.texture is not None and suffix not in (".obj", ".glb"):
-        raise ValueError(f"--texture: textures are written to .obj and .glb files, not {out.suffix!r}")
+    if args.texture is not None and suffix not in (".obj", ".glb", ".vrm"):
+        raise ValueError(
+            f"--texture: textures are written to .obj and .glb files (and .vrm avatars), not {out.suffix!r}"
+        )
     source = load_input(args.input, fps=args.fps)  # the rate of a motion that states none
     frames = _frame_slice(args.frames)
     if frames is not None:
@@ -304,7 +306,11 @@ def run(args: argparse.Namespace) -> int:
                 elif suffix in (".vrm", ".vrma"):
                     from smplcore.export.vrm import save_vrm, save_vrma
 
-                    report = save_vrm(out, model, anim) if suffix == ".vrm" else save_vrma(out, model, anim)
+                    report = (
+                        save_vrm(out, model, anim, texture=args.texture)
+                        if suffix == ".vrm"
+                        else save_vrma(out, model, anim)
+                    )
                 else:
                     report = save_bvh(out, model, anim, scale=args.bvh_scale, euler=args.euler, progress=update)
             finally:

@@ -330,6 +330,7 @@ def save_vrm(
     *,
     meta: Mapping[str, Any] | None = None,
     uv: bool | None = None,
+    texture: Any = None,
     progress: Progress | None = None,
 ) -> ExportReport:
     """Write the shaped body of ``model`` as a VRM 1.0 avatar in the VRM T-pose.
@@ -343,6 +344,8 @@ def save_vrm(
         frame); default the mean shape. The avatar holds no animation (write a ``.vrma`` for that).
     meta : fields of ``VRMC_vrm.meta`` replacing :func:`default_meta`'s (e.g. ``name``, ``authors``).
     uv : write the model's UV map as ``TEXCOORD_0`` (default: whenever the model has one).
+    texture : optional base-colour texture for the UV map (an image file, an (H, W, 3|4) uint8 array or
+        ``"uv-grid"``), embedded as PNG (see :func:`smplcore.export.save_glb`).
     progress : called with numbers of frames processed.
 
     Returns
@@ -354,7 +357,7 @@ def save_vrm(
 
     pygltflib = require("pygltflib", "save_vrm", "export")
     from smplcore.export.gltf import _float32_weights, _version, _vertex_normals
-    from smplcore.export.uv import model_uv, split_seams
+    from smplcore.export.uv import encode_png, model_uv, resolve_texture, split_seams
 
     path = _check_path(path, ".vrm")
     anim = _animation_of(model, source, None, progress)
@@ -372,6 +375,9 @@ def save_vrm(
     uv_map = model_uv(model)
     if uv and uv_map is None:
         raise ValueError(f"uv: the {anim.model_type} model has no UV map (vt/ft)")
+    if texture is not None and (uv_map is None or uv is False):
+        raise ValueError("texture: a texture needs the model's UV map; the model has none or uv=False was given")
+    image = resolve_texture(texture)
     split = split_seams(anim.faces, *uv_map) if uv_map is not None and uv is not False else None
 
     joints_idx, values, _ = top_k_weights(anim.weights, 4)
@@ -417,11 +423,22 @@ def save_vrm(
             ],
         )
     )
+    base_texture = None
+    if image is not None:
+        gltf.images.append(
+            pygltflib.Image(bufferView=build.raw(encode_png(image)), mimeType="image/png", name="base_color")
+        )
+        gltf.samplers.append(pygltflib.Sampler(magFilter=9729, minFilter=9987, wrapS=33071, wrapT=33071))
+        gltf.textures.append(pygltflib.Texture(sampler=0, source=0, name="base_color"))
+        base_texture = pygltflib.TextureInfo(index=0, texCoord=0)
     gltf.materials.append(
         pygltflib.Material(
             name="body",
             pbrMetallicRoughness=pygltflib.PbrMetallicRoughness(
-                baseColorFactor=[0.8, 0.72, 0.66, 1.0], metallicFactor=0.0, roughnessFactor=0.7
+                baseColorFactor=[1.0, 1.0, 1.0, 1.0] if image is not None else [0.8, 0.72, 0.66, 1.0],
+                baseColorTexture=base_texture,
+                metallicFactor=0.0,
+                roughnessFactor=0.7,
             ),
         )
     )
