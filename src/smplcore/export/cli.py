@@ -12,6 +12,7 @@ Examples::
     smplcore export walk.npz -o walk.glb --engine unreal  # root bone, centimetres, feet on the ground
     smplcore export walk.npz -o avatar.vrm                # VRM 1.0 avatar (T-pose) of the motion's body
     smplcore export walk.npz -o walk.vrma                 # VRM animation clip any VRM avatar plays
+    smplcore export walk.npz -o walk.usdz                 # rigged USDZ; also .usd/.smpl (see export/cli_usd.py)
 """
 
 from __future__ import annotations
@@ -156,6 +157,16 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="hand poses are relative to the model's mean hand pose (smplx's default)",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--format",
+        choices=[f.lstrip(".") for f in FORMATS],
+        default=None,
+        help="obj, ply, glb, bvh, vrm (VRM 1.0 avatar) or vrma (VRM animation); default: from the suffix of OUT "
+        "(OUT without a suffix gets the format's)",
+    )
+    from smplcore.export.cli_usd import add_arguments  # USD / USDZ, .smpl, the Blender add-on npz
+
+    add_arguments(parser)
     parser.set_defaults(run=run)
 
 
@@ -240,12 +251,23 @@ def _progress_bar(total: int, disable: bool):
 def run(args: argparse.Namespace) -> int:
     from smplcore.export import save_bvh, save_glb, save_mesh, weight_colors
     from smplcore.export.animation import load_input, prepare_animation
+    from smplcore.export.cli_usd import format_of, run_interchange
     from smplcore.motion import Motion
 
+    interchange = format_of(args)  # USD / USDZ, .smpl, the Blender add-on npz
+    if interchange is not None:
+        return run_interchange(args, interchange)
     out = Path(args.output)
     suffix = out.suffix.lower()
+    chosen = getattr(args, "format", None)
+    if chosen is not None and f".{chosen}" in FORMATS:
+        if not suffix:  # OUT without a suffix gets the format's
+            out, suffix = out.with_suffix(f".{chosen}"), f".{chosen}"
+        elif suffix != f".{chosen}":
+            raise ValueError(f"-o/--output: --format {chosen} writes .{chosen} files, got {args.output}")
     if suffix not in FORMATS:
-        raise ValueError(f"-o/--output: unsupported suffix {out.suffix!r}; expected one of {', '.join(FORMATS)}")
+        expected = ", ".join(FORMATS + (".usd", ".usda", ".usdc", ".usdz", ".smpl"))
+        raise ValueError(f"-o/--output: unsupported suffix {out.suffix!r}; expected one of {expected}")
     if (args.engine is not None or args.unit_scale is not None) and suffix != ".glb":
         raise ValueError(f"--engine/--unit-scale: engine conventions apply to .glb files, not {out.suffix!r}")
     if args.texture is not None and suffix not in (".obj", ".glb", ".vrm"):
