@@ -1,5 +1,5 @@
 """``smplcore export``: a parameter set or a motion to a mesh (OBJ/PLY), a rigged animation (glTF
-binary) or skeleton motion (BVH). Registered by :mod:`smplcore.cli`.
+binary, FBX) or skeleton motion (BVH). Registered by :mod:`smplcore.cli`.
 
 Examples::
 
@@ -12,6 +12,7 @@ Examples::
     smplcore export walk.npz -o walk.glb --engine unreal  # root bone, centimetres, feet on the ground
     smplcore export walk.npz -o avatar.vrm                # VRM 1.0 avatar (T-pose) of the motion's body
     smplcore export walk.npz -o walk.vrma                 # VRM animation clip any VRM avatar plays
+    smplcore export walk.npz -o walk.fbx --up-axis z --root-bone root   # FBX for Unreal (centimetres)
     smplcore export walk.npz -o walk.usdz                 # rigged USDZ; also .usd/.smpl (see export/cli_usd.py)
 """
 
@@ -27,7 +28,7 @@ import numpy as np
 
 from smplcore.cli_options import model_file_options
 
-FORMATS = (".obj", ".ply", ".glb", ".bvh", ".vrm", ".vrma")
+FORMATS = (".obj", ".ply", ".glb", ".bvh", ".fbx", ".vrm", ".vrma")
 _HAND_BLOCKS = ("left_hand_pose", "right_hand_pose", "hand_pose")
 
 
@@ -49,8 +50,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         type=Path,
         required=True,
         metavar="OUT",
-        help="output file: .obj, .ply (one posed frame), .glb (rigged + animated), .bvh, .vrm (VRM 1.0 avatar) "
-        "or .vrma (VRM animation)",
+        help="output file: .obj, .ply (one posed frame), .glb or .fbx (rigged + animated), .bvh, .vrm (VRM 1.0 "
+        "avatar) or .vrma (VRM animation)",
+    )
+    parser.add_argument(
+        "--format",
+        default=None,
+        choices=[f.lstrip(".") for f in FORMATS],
+        help="output format (default: from the suffix of OUT; OUT without a suffix gets this one)",
     )
     parser.add_argument("--model-path", default=None, help="model file or folder (default: the open model)")
     parser.add_argument(
@@ -101,19 +108,19 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--colors",
         choices=("none", "weights"),
         default="none",
-        help=".obj/.ply/.glb: per-vertex colours from the skinning weights (default: none)",
+        help=".obj/.ply/.glb/.fbx: per-vertex colours from the skinning weights (default: none)",
     )
     parser.add_argument(
         "--texture",
         default=None,
         metavar="FILE",
-        help=".obj/.glb/.vrm: image drawn through the model's UV map (the open model, SMPL-X; the UVs are written "
+        help=".obj/.glb/.fbx/.vrm: image drawn through the model's UV map (the open model, SMPL-X; the UVs are written "
         "whenever the model has them), or 'uv-grid' for a generated grid that shows the mapping",
     )
     parser.add_argument(
         "--morph-targets",
         action="store_true",
-        help=".glb: add shape (and expression) components as morph targets",
+        help=".glb/.fbx: add shape (and expression) components as morph targets (FBX: blend shapes)",
     )
     parser.add_argument(
         "--influences",
@@ -142,6 +149,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help=".bvh: length unit multiplier; 1 = metres (default), 100 = centimetres",
     )
     parser.add_argument("--euler", default="ZYX", help=".bvh: rotation channel order (default: ZYX)")
+    from smplcore.export.fbx.cli import add_fbx_options
+
+    add_fbx_options(parser)
     hands = parser.add_mutually_exclusive_group()
     hands.add_argument(
         "--flat-hand-mean",
@@ -157,13 +167,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="hand poses are relative to the model's mean hand pose (smplx's default)",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    parser.add_argument(
-        "--format",
-        choices=[f.lstrip(".") for f in FORMATS],
-        default=None,
-        help="obj, ply, glb, bvh, vrm (VRM 1.0 avatar) or vrma (VRM animation); default: from the suffix of OUT "
-        "(OUT without a suffix gets the format's)",
-    )
     from smplcore.export.cli_usd import add_arguments  # USD / USDZ, .smpl, the Blender add-on npz
 
     add_arguments(parser)
@@ -258,21 +261,20 @@ def run(args: argparse.Namespace) -> int:
     if interchange is not None:
         return run_interchange(args, interchange)
     out = Path(args.output)
+    fmt = getattr(args, "format", None)
+    if fmt and not out.suffix:
+        out = out.with_suffix(f".{fmt}")
+    elif fmt and out.suffix.lower() != f".{fmt}":
+        raise ValueError(f"--format {fmt}: the output {str(out)!r} has another suffix; use .{fmt} or drop --format")
     suffix = out.suffix.lower()
-    chosen = getattr(args, "format", None)
-    if chosen is not None and f".{chosen}" in FORMATS:
-        if not suffix:  # OUT without a suffix gets the format's
-            out, suffix = out.with_suffix(f".{chosen}"), f".{chosen}"
-        elif suffix != f".{chosen}":
-            raise ValueError(f"-o/--output: --format {chosen} writes .{chosen} files, got {args.output}")
     if suffix not in FORMATS:
         expected = ", ".join(FORMATS + (".usd", ".usda", ".usdc", ".usdz", ".smpl"))
         raise ValueError(f"-o/--output: unsupported suffix {out.suffix!r}; expected one of {expected}")
     if (args.engine is not None or args.unit_scale is not None) and suffix != ".glb":
         raise ValueError(f"--engine/--unit-scale: engine conventions apply to .glb files, not {out.suffix!r}")
-    if args.texture is not None and suffix not in (".obj", ".glb", ".vrm"):
+    if args.texture is not None and suffix not in (".obj", ".glb", ".fbx", ".vrm"):
         raise ValueError(
-            f"--texture: textures are written to .obj and .glb files (and .vrm avatars), not {out.suffix!r}"
+            f"--texture: textures are written to .obj, .glb and .fbx files (and .vrm avatars), not {out.suffix!r}"
         )
     source = load_input(args.input, fps=args.fps)  # the rate of a motion that states none
     frames = _frame_slice(args.frames)
@@ -306,7 +308,9 @@ def run(args: argparse.Namespace) -> int:
             report_warnings: list[str] = []
         else:
             count = source.num_frames if isinstance(source, Motion) else _count(source)
-            passes = 2 + (suffix == ".glb" and bool(model.has_pose_correctives)) - (suffix in (".vrm", ".vrma"))
+            passes = (
+                2 + (suffix in (".glb", ".fbx") and bool(model.has_pose_correctives)) - (suffix in (".vrm", ".vrma"))
+            )
             bar = _progress_bar(count * passes, args.no_progress or count < 100)
             update = None if bar is None else bar.update
             try:
@@ -333,6 +337,10 @@ def run(args: argparse.Namespace) -> int:
                         if suffix == ".vrm"
                         else save_vrma(out, model, anim)
                     )
+                elif suffix == ".fbx":
+                    from smplcore.export.fbx.cli import write_fbx
+
+                    report = write_fbx(args, out, model, anim, progress=update)
                 else:
                     report = save_bvh(out, model, anim, scale=args.bvh_scale, euler=args.euler, progress=update)
             finally:
