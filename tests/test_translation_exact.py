@@ -20,7 +20,8 @@ FAR = [1e3, 1e6]  # metres
 
 def _params(model_setup, transl, seed=0):
     rng = np.random.default_rng(seed)
-    params = {"betas": rng.normal(0, 1, (2, model_setup.num_betas)), "transl": np.array([[transl, -transl, transl]] * 2)}
+    params = {"betas": rng.normal(0, 1, (2, model_setup.num_betas))}
+    params["transl"] = np.array([[transl, -transl, transl]] * 2)
     for block in model_setup.spec.pose_blocks:
         params[block.name] = rng.normal(0, 0.3, (2, model_setup.pose_width(block.name)))
     return params
@@ -80,7 +81,11 @@ def test_the_compiled_operators_far_away_equal_the_oracle(gradients):
     if source is None or source.handle is None:
         pytest.skip("this front end registers no operator handle")
     verts, _ = ops.forward(
-        source.handle, source.latest_arrays(), coeffs, rotmats, translation=torch.tensor(params["transl"]),
+        source.handle,
+        source.latest_arrays(),
+        coeffs,
+        rotmats,
+        translation=torch.tensor(params["transl"]),
         gradients=gradients,
     )
     np.testing.assert_allclose(verts.detach().numpy(), ev, atol=_tolerance(1e6), rtol=0)
