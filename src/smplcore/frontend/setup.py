@@ -154,15 +154,15 @@ class ModelSetup:
             )
             num_betas = data.num_betas
         shapedirs = np.asarray(data.shapedirs[:, :, :num_betas])
+        if age == "kid":  # the kid offset is measured from the file's template, before any custom one (as smplx)
+            shapedirs, num_betas = _with_kid_component(data, shapedirs, kid_template_path), num_betas + 1
+        elif age != "adult":
+            raise ValueError(f"age: expected 'adult' or 'kid', got {age!r}")
         if v_template is not None:
             v_template = np.asarray(v_template, dtype=np.float64)
             if v_template.shape != data.v_template.shape:
                 raise ShapeError(f"v_template: expected shape {data.v_template.shape}, got {v_template.shape}")
             data = data.replace(v_template=v_template)
-        if age == "kid":
-            shapedirs, num_betas = _with_kid_component(data, shapedirs, kid_template_path), num_betas + 1
-        elif age != "adult":
-            raise ValueError(f"age: expected 'adult' or 'kid', got {age!r}")
 
         exprdirs = np.zeros((data.num_vertices, 3, 0))
         if spec.has_expression:
