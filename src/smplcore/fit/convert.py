@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from smplcore.errors import ModelFileError
+from smplcore.fit import checks
 from smplcore.fit.body import FitBody
 from smplcore.fit.result import FitResult, as_array
 
@@ -243,6 +244,10 @@ def convert(
     from smplcore.fit.joints import fit_joints
     from smplcore.fit.vertices import fit_vertices
 
+    if not isinstance(params, dict):
+        raise TypeError(f"params: expected a dict of the source model's forward keywords, got {type(params).__name__}")
+    if points is not None:
+        points = checks.count("points", points, 3)
     for name, value in params.items():
         if value is not None:
             as_array(value, f"params[{name!r}]")

@@ -36,6 +36,8 @@ class VertexJointSelector(nn.Module):
     """smplx's ``vertex_joint_selector``: holds the ``extra_joints_idxs`` buffer (the vertices appended to the
     joints) and appends them: ``selector(vertices, joints)`` is (B, J + n, 3)."""
 
+    extra_joints_idxs: torch.Tensor
+
     def __init__(self, ids: list[int]) -> None:
         super().__init__()
         self.register_buffer("extra_joints_idxs", torch.tensor(ids, dtype=torch.long))

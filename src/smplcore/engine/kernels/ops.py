@@ -257,7 +257,7 @@ def forward(
     """
     with_one, posed_joints, transforms = _skeleton(handle, arrays, coeffs, rotmats)
     fold = translation is not None and arrays.weights_sum_to_one  # exact only then (BodyArrays)
-    if fold:
+    if fold and translation is not None:
         transforms = torch.cat([transforms[..., :9], transforms[..., 9:] + translation[:, None]], dim=-1)
     feats = with_one
     if arrays.has_pose_correctives:
