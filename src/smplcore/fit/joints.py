@@ -166,7 +166,7 @@ def fit_joints(
     FitResult with ``params`` and ``joint_error`` (B,) (metres). Targets whose size is more than 10x off the
     model's (millimetres, centimetres) are refused with a ValueError naming ``joints``; bodies left further
     from their targets than half the targets' spread are flagged not converged, with a warning; a fit that
-    would come out non-finite raises :class:`smplcore.fit.checks.FitError` (never a NaN result).
+    would come out non-finite raises :class:`smplcore.fit.FitError` (never a NaN result).
 
     Examples
     --------

@@ -322,7 +322,7 @@ def fit_keypoints(
     FitResult with ``params``, ``reprojection_error`` (B,) mean pixels over the keypoints used,
     ``converged`` (B,) and ``camera`` (the given one, or with the estimated focal length). Bodies whose mean
     reprojection error exceeds half their keypoints' spread are flagged not converged, with a warning; a fit
-    that would come out non-finite raises :class:`smplcore.fit.checks.FitError` (never a NaN result).
+    that would come out non-finite raises :class:`smplcore.fit.FitError` (never a NaN result).
     """
     if camera is None:
         raise ValueError(
