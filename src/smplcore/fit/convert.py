@@ -71,8 +71,7 @@ MAX_SOURCES_PER_VERTEX = 64
 def read_deformation_transfer(path: str | Path, num_source: int, num_target: int) -> Correspondence:
     """The vertex map of an official deformation-transfer pickle (``mtx`` or ``matrix``), read safely; rows
     with more than :data:`MAX_SOURCES_PER_VERTEX` weights are refused (memory bounded by the target's size)."""
-    from smplcore.io import safe_load
-    from smplcore.io.budgets import LoadBudget
+    from smplcore.io import LoadBudget, safe_load
 
     path = Path(path)
     if not path.is_file():
