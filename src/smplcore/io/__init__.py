@@ -13,6 +13,7 @@ from smplcore.io.locate import OPEN_MODEL_PATH, locate_model_file, read_model
 from smplcore.io.model_data import MODEL_TYPES, ModelData
 from smplcore.io.model_files import load_model
 from smplcore.io.npz_writer import convert, save_npz
+from smplcore.io.open_ages import age_for_stature
 from smplcore.io.safe_pickle import UnsafePickleError, materialize, safe_load
 from smplcore.io.torch_file import load_torch_file
 
@@ -23,6 +24,7 @@ __all__ = [
     "LoadBudget",
     "ModelData",
     "UnsafePickleError",
+    "age_for_stature",
     "convert",
     "load_model",
     "load_torch_file",
