@@ -41,6 +41,45 @@ def _floats(text: str) -> tuple[float, ...]:
         raise argparse.ArgumentTypeError(f"expected numbers separated by commas, got {text!r}") from None
 
 
+def _positive_floats(text: str) -> tuple[float, ...]:
+    values = _floats(text)
+    if not values or not all(np.isfinite(v) and v > 0 for v in values):
+        raise argparse.ArgumentTypeError(f"expected positive numbers (pixels), got {text!r}")
+    return values
+
+
+def _extrinsics(text: str) -> tuple[float, ...]:
+    """A world-to-camera matrix: 12 or 16 numbers (3 x 4 or 4 x 4, row by row), or a .npy / text file of it."""
+    path = Path(text)
+    if path.suffix.lower() in (".npy", ".txt", ".csv") or path.exists():
+        if not path.is_file():
+            raise argparse.ArgumentTypeError(f"{text}: no such file")
+        try:
+            values = np.load(path) if path.suffix.lower() == ".npy" else np.loadtxt(path, delimiter=None, ndmin=2)
+        except (OSError, ValueError) as exc:
+            raise argparse.ArgumentTypeError(f"{text}: cannot read a matrix ({exc})") from None
+        flat = np.asarray(values, np.float64).reshape(-1)
+    else:
+        flat = np.asarray(_floats(text))
+    if flat.size not in (12, 16):
+        raise argparse.ArgumentTypeError(f"expected a 3 x 4 or 4 x 4 world-to-camera matrix (12 or 16 numbers), got "
+                                         f"{flat.size} numbers")  # fmt: skip
+    matrix = np.eye(4)
+    matrix[: flat.size // 4] = flat.reshape(-1, 4)
+    rotation = matrix[:3, :3]
+    if (
+        not np.all(np.isfinite(matrix))
+        or not np.allclose(matrix[3], [0, 0, 0, 1])
+        or np.abs(rotation @ rotation.T - np.eye(3)).max() > 1e-5
+        or np.linalg.det(rotation) < 0
+    ):
+        raise argparse.ArgumentTypeError(
+            "expected a rigid world-to-camera transform [R | t] (R a rotation, last row 0 0 0 1), OpenCV axes "
+            "(x right, y down, z forward)"
+        )
+    return tuple(float(v) for v in matrix.reshape(-1))
+
+
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     """Register ``smplcore fit``."""
     p = subparsers.add_parser(
@@ -64,10 +103,16 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--source-model-path", default=None, help="conversion: the source motion's model (default: open)")
     p.add_argument("--convention", default=None, help="keypoint/joint convention (default: the reader's)")
     p.add_argument("--joint-names", default=None, help=".npy joints: the model joint names, comma-separated")
-    p.add_argument("--focal", type=_floats, default=None, help="2D: focal length f or fx,fy (pixels)")
+    p.add_argument("--focal", type=_positive_floats, default=None, help="2D: focal length f or fx,fy (pixels)")
     p.add_argument("--center", type=_floats, default=None, help="2D: principal point cx,cy (pixels)")
     p.add_argument(
-        "--image-size", type=_floats, default=None,
+        "--extrinsics", type=_extrinsics, default=None, metavar="MATRIX",
+        help="2D: the camera's world-to-camera transform [R | t] (OpenCV axes: x right, y down, z forward), 12 or "
+        "16 numbers row by row or a .npy / text file of them; the fit is written in that world. Default: a level "
+        "camera, Y up, the lowest point of the bodies on the ground y = 0 (the output records the extrinsics)",
+    )  # fmt: skip
+    p.add_argument(
+        "--image-size", type=_positive_floats, default=None,
         help="2D: W,H; principal point at the centre; without --focal the focal length is the image diagonal",
     )  # fmt: skip
     p.add_argument(
@@ -80,6 +125,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--fps", type=float, default=30.0, help="frame rate written to the output (default 30)")
     p.add_argument("--person", type=int, default=0, help="OpenPose: which person of each frame (default 0)")
     p.add_argument("--smoothness", type=float, default=1e-3, help="sequences: temporal smoothness weight")
+    p.add_argument(
+        "--max-iter", type=_positive_int, default=None, metavar="N",
+        help="the solver's iteration budget per round (default: each fit's, 25 for 2D keypoints); frames that use it "
+        "all before their cost settles are reported",
+    )  # fmt: skip
     p.add_argument("--workers", type=int, default=1, help="folder of inputs: processes (default 1)")
     p.add_argument(
         "--ray",
@@ -92,6 +142,58 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--overwrite", action="store_true", help="refit inputs whose output exists")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected 1 or more, got {value}")
+    return value
+
+
+def _check_camera(args: argparse.Namespace, source: Path) -> None:
+    """Camera options that cannot work, refused before any fit (exit status 2); absurd focal lengths too."""
+    from smplcore.fit.inputs import input_kind
+
+    if args.focal is not None and args.center is None and args.image_size is None:
+        raise ValueError("--focal: the principal point is needed too: add --center cx,cy or --image-size W,H")
+    if args.focal is None and args.image_size is None and source.exists():
+        inputs = [source] if _is_single(source) else find_inputs(source) if source.is_dir() else []
+        openpose = [p for p in inputs if p.is_dir() and _safe_kind(input_kind, p) == "openpose"]
+        if openpose:
+            raise ValueError(
+                f"camera: OpenPose keypoints ({openpose[0]}) need the camera: pass --focal f --center cx,cy, or "
+                "--image-size W,H (the focal length is then the image diagonal)"
+            )
+    if args.focal is None:
+        return
+    if args.image_size is not None:
+        width, height = args.image_size
+    else:
+        width, height = 2.0 * abs(args.center[0]), 2.0 * abs(args.center[1])  # the image around its centre
+    diagonal = float(np.hypot(width, height))
+    if diagonal <= 0:
+        return
+    for f in args.focal:
+        fov = float(np.degrees(2.0 * np.arctan(diagonal / (2.0 * f))))
+        text = f"--focal {f:g}: a {fov:.3g}° field of view across the {diagonal:.0f} px image diagonal"
+        if fov > 170.0 or fov < 0.1:
+            raise ValueError(
+                f"{text}, not a camera lens; the focal length is in pixels: focal mm x image width px / sensor "
+                f"width mm (about {diagonal:.0f} px for a normal lens)"
+            )
+        if fov > 120.0 or fov < 2.0:
+            print(f"warning: {text}; is it in pixels (focal mm x image width px / sensor width mm)?", file=sys.stderr)
+
+
+def _safe_kind(kind, path: Path) -> str | None:
+    try:
+        return kind(path)
+    except (ValueError, OSError):
+        return None
 
 
 def _settings(args: argparse.Namespace):
@@ -124,6 +226,8 @@ def _settings(args: argparse.Namespace):
         estimate_focal=args.estimate_focal,
         vposer=None if args.vposer is None else str(Path(args.vposer).resolve()),
         gmm=None if args.gmm is None else str(Path(args.gmm).resolve()),
+        extrinsics=args.extrinsics,
+        max_iter=args.max_iter,
     )
 
 
@@ -191,6 +295,7 @@ def run(args: argparse.Namespace) -> int:
     source, out = Path(args.input), Path(args.output)
     if not source.exists():
         raise FileNotFoundError(f"{source}: no such file or folder")
+    _check_camera(args, source)
     if _is_single(source):
         if out.suffix.lower() != ".npz":
             raise ValueError(f"-o/--output: expected a .npz file for one input, got {out}")
@@ -228,7 +333,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if bar is not None:
             bar.close()
-    return _report(entries, manifest)
+    return _report(entries, manifest, args.max_iter)
 
 
 def _run_ray(todo: list, settings: Any, address: str, workers: int, entries: list, bar: Any) -> None:
@@ -264,7 +369,7 @@ def _run_ray(todo: list, settings: Any, address: str, workers: int, entries: lis
             ray.shutdown()
 
 
-def _report(entries: list[dict[str, Any]], manifest: Path | None) -> int:
+def _report(entries: list[dict[str, Any]], manifest: Path | None, max_iter: int | None = None) -> int:
     from smplcore.motion.process.task import atomic_write
 
     done = [e for e in entries if e["status"] == "done"]
@@ -280,13 +385,16 @@ def _report(entries: list[dict[str, Any]], manifest: Path | None) -> int:
             print(f"  frames without a detection (filled from the nearest frame): {e['missing'][:20]}")
     lagging = [e for e in done if e.get("not_converged")]
     if lagging:
-        print("not converged:")
+        budget = f"--max-iter {max_iter}" if max_iter is not None else "the default --max-iter"
+        print(f"not converged: these frames used the whole iteration budget ({budget}) before the solver's "
+              "stopping test was met; the mean error above says how far they got (a larger --max-iter "
+              "iterates further):")  # fmt: skip
         for e in lagging:
             frames = e["not_converged"]
             more = f" … (+{len(frames) - 20})" if len(frames) > 20 else ""
-            print(f"  {e['input']}: frames {frames[:20]}{more}")
+            print(f"  {e['input']}: {len(frames)} of {e['frames']} frames {frames[:20]}{more}")
     print(f"{len(done)} fitted, {len(skipped)} skipped (bad input), {len(kept)} already done, "
-          f"{len(lagging)} with frames not converged")  # fmt: skip
+          f"{len(lagging)} stopped at the iteration budget")  # fmt: skip
     if manifest is not None:
         text = json.dumps({"entries": entries}, indent=1).encode()
         atomic_write(manifest, lambda fh: fh.write(text))

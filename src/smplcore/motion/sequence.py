@@ -49,8 +49,9 @@ def warn_open_model_betas(motion_type: str, *, stacklevel: int = 2, key: str = "
 
 
 # Full-pose width (values per frame) of each model type.
-POSE_WIDTH = {"smpl": 72, "smplh": 156, "smplx": 165, "mano": 48, "flame": 15}
-_TYPE_BY_WIDTH = {v: k for k, v in POSE_WIDTH.items()}
+# "open": the open model in SMPL's layout (a fit of it records it, so that its betas are read as its own)
+POSE_WIDTH = {"open": 72, "smpl": 72, "smplh": 156, "smplx": 165, "mano": 48, "flame": 15}
+_TYPE_BY_WIDTH = {v: k for k, v in POSE_WIDTH.items() if k != "open"}  # 72 values: SMPL
 
 
 @dataclass(frozen=True)
@@ -63,7 +64,8 @@ class Motion:
     trans : (T, 3) root translation per frame (metres).
     betas : (S,) shape coefficients.
     fps : frames per second.
-    model_type : ``smplh``, ``smplx`` or ``smpl`` (the layout of ``poses``).
+    model_type : ``smplh``, ``smplx``, ``smpl`` or ``open`` (the layout of ``poses``; ``open``: SMPL's layout,
+        the open model's betas).
     gender : ``neutral``, ``male`` or ``female``.
     expression : (T, E) expression coefficients, or None.
     dmpls : (T, 8) soft-tissue coefficients (AMASS SMPL+H), kept but not used by the body models.
