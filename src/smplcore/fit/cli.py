@@ -140,7 +140,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="folder of inputs: run the fits as Ray tasks (a local instance, or ADDRESS / 'auto' for a cluster)",
     )
     p.add_argument("--overwrite", action="store_true", help="refit inputs whose output exists")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-progress", "--quiet", dest="no_progress", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
 
 

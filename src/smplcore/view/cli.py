@@ -80,7 +80,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     render.add_argument("--fit-over", type=Path, default=None, metavar="KEYPOINTS", help="target keypoints to draw")
     render.add_argument("--batch", type=int, default=32, help="frames posed per model call (default: %(default)s)")
     _model_options(render)
-    render.add_argument("--no-progress", action="store_true", help="no progress bar")
+    render.add_argument("--no-progress", "--quiet", dest="no_progress", action="store_true", help="no progress bar")
     render.set_defaults(run=run_render)
 
 

@@ -226,6 +226,8 @@ def find_inputs(
             size = path.stat().st_size
         except OSError:
             size = 0
-        tasks.append(Task(str(path.resolve()), rel.as_posix(), str(output_dir / rel.with_suffix(options.suffix)), size))
+        # absolute, symlinks kept: messages name the path as typed, not a link's target
+        source = os.path.abspath(path)
+        tasks.append(Task(source, rel.as_posix(), str(output_dir / rel.with_suffix(options.suffix)), size))
     tasks.sort(key=lambda t: (-t.size, t.relative))
     return tasks
