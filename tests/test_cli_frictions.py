@@ -84,3 +84,60 @@ def test_process_names_a_skipped_symlink_as_typed(tmp_path, capsys):
     captured = capsys.readouterr()
     assert status == 1 and "skipped in/walk_poses.npz:" in captured.err, captured
     assert "real_walk" not in captured.err + captured.out, captured
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_viewer_keypoints_show_through_a_translucent_first_body(tmp_path):
+    pytest.importorskip("viser", reason="smplcore view needs the view extra")
+    from smplcore.view import Viewer
+    from smplcore.view.sources import Source
+
+    np.save(tmp_path / "target.npy", np.zeros((1, 5, 3)))  # inside the body, at the pelvis
+    two = [Source(label="a"), Source(label="b")]  # two open models at rest
+    with Viewer(two, keypoints=tmp_path / "target.npy", port=_free_port()) as v:
+        assert v._nodes[0]["mesh"].opacity is not None and v._nodes[0]["mesh"].opacity < 1.0
+        assert v._nodes[1]["mesh"].opacity is None  # the other body stays opaque
+        v.set_overlays(skeleton=False)
+        assert v._nodes[0]["mesh"].opacity is not None and v._nodes[0]["mesh"].opacity < 1.0
+    with Viewer([], port=_free_port()) as v:
+        assert v._nodes[0]["mesh"].opacity is None  # no keypoints: opaque
+
+
+def test_view_says_1_body(monkeypatch, capsys):
+    pytest.importorskip("viser", reason="smplcore view needs the view extra")
+    import types
+
+    import smplcore.view.cli
+    from smplcore.cli import main
+
+    def ctrl_c(seconds: float) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(smplcore.view.cli, "time", types.SimpleNamespace(sleep=ctrl_c))
+    assert main(["view", "--port", str(_free_port())]) == 0
+    assert "serving 1 body at http://" in capsys.readouterr().out
+
+
+def test_render_prints_a_shape_space_warning_as_one_line(tmp_path, capsys):
+    pytest.importorskip("imageio_ffmpeg", reason="video needs the view extra")
+    from smplcore.cli import main
+    from smplcore.motion import Motion, save_motion
+
+    motion = Motion(np.zeros((2, 72)), np.zeros((2, 3)), np.ones(10), 30.0, model_type="smpl")  # SMPL's betas
+    path = save_motion(motion, tmp_path / "walk.npz")
+    try:
+        status = main(["render", str(path), "-o", str(tmp_path / "walk.gif"), "--size", "64x48", "--no-progress"])
+    except RuntimeError as exc:  # pragma: no cover - no offscreen OpenGL here
+        pytest.skip(str(exc))
+    err = capsys.readouterr().err
+    assert status == 0, err
+    lines = [line for line in err.splitlines() if "betas" in line]
+    assert len(lines) == 1 and lines[0].startswith("smplcore render: warning: betas:"), err
+    assert "bodies.py" not in err and "warn(" not in err, err

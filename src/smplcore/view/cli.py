@@ -13,8 +13,11 @@ Examples::
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 import time
+import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 from smplcore.view._deps import MissingDependencyError
@@ -89,6 +92,35 @@ def _missing(command: str, exc: MissingDependencyError) -> int:
     return 2
 
 
+def _one_line_warnings(command: str) -> Callable[[Callable[..., int]], Callable[..., int]]:
+    """A command whose warnings about the inputs (another shape space, coefficients dropped: UserWarnings) are
+    printed as one line ``smplcore COMMAND: warning: ...``, not as Python's two pointing into smplcore."""
+
+    def decorate(run: Callable[..., int]) -> Callable[..., int]:
+        @functools.wraps(run)
+        def wrapper(args: argparse.Namespace) -> int:
+            with warnings.catch_warnings():
+                show = warnings.showwarning
+
+                def showwarning(message, category, filename, lineno, file=None, line=None):  # noqa: ANN001, ANN202
+                    if issubclass(category, UserWarning):
+                        print(f"smplcore {command}: warning: {message}", file=sys.stderr, flush=True)
+                    else:
+                        show(message, category, filename, lineno, file, line)
+
+                warnings.showwarning = showwarning
+                return run(args)
+
+        return wrapper
+
+    return decorate
+
+
+def _bodies(count: int) -> str:
+    return f"{count} body" if count == 1 else f"{count} bodies"
+
+
+@_one_line_warnings("view")
 def run_view(args: argparse.Namespace) -> int:
     from smplcore.view.viewer import Viewer
 
@@ -106,7 +138,7 @@ def run_view(args: argparse.Namespace) -> int:
         )
     except MissingDependencyError as exc:
         return _missing("view", exc)
-    print(f"smplcore view: serving {len(viewer.bodies)} body(ies) at http://{args.host}:{viewer.port}/", flush=True)
+    print(f"smplcore view: serving {_bodies(len(viewer.bodies))} at http://{args.host}:{viewer.port}/", flush=True)
     try:
         while True:
             time.sleep(3600)
@@ -140,6 +172,7 @@ class _Bar:
             self.bar.close()
 
 
+@_one_line_warnings("render")
 def run_render(args: argparse.Namespace) -> int:
     from smplcore.view.video import render_video
 
