@@ -117,6 +117,12 @@ class BodyModel:
         return self.setup.spec.model_type
 
     @property
+    def gender(self) -> str:
+        """The model's gender, normalised: ``"neutral"``, ``"male"``, ``"female"`` (MANO: ``"right"`` /
+        ``"left"``), as the file says (else as asked for)."""
+        return self.setup.data.gender
+
+    @property
     def num_betas(self) -> int:
         return self.setup.num_betas
 

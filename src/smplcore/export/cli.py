@@ -249,6 +249,7 @@ def run(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         model = _build_model(args, source)
+        _warn_unused_dmpls(source, model, suffix)
         if model.skinning == "dqs" and suffix == ".glb":
             warnings.warn(
                 "--skinning dqs: glTF skins are linear blend skinning, so the .glb rig holds the LBS weights "
@@ -293,6 +294,19 @@ def run(args: argparse.Namespace) -> int:
             print(f"warning: {text}", file=sys.stderr)
     print(message)
     return 0
+
+
+def _warn_unused_dmpls(source: Any, model: Any, suffix: str) -> None:
+    """A motion's soft tissue (``dmpls``) is used only with ``--dmpl``: say so instead of dropping it silently."""
+    dmpls = source.get("dmpls") if isinstance(source, dict) else getattr(source, "dmpls", None)
+    used = int(getattr(model, "num_dmpls", 0)) > 0
+    if dmpls is None or used or suffix == ".bvh" or not np.any(np.asarray(dmpls)):
+        return
+    warnings.warn(
+        f"dmpls: the input has DMPL soft-tissue coefficients ({np.shape(dmpls)[-1]} per frame) that are not "
+        "used; add --dmpl FILE (AMASS's DMPL download, dmpls/<gender>/model.npz) to write the soft tissue",
+        stacklevel=2,
+    )
 
 
 def _count(params: dict[str, Any]) -> int:

@@ -369,6 +369,12 @@ def _run_ray(todo: list, settings: Any, address: str, workers: int, entries: lis
             ray.shutdown()
 
 
+def _rows(count: int, entry: dict[str, Any]) -> str:
+    """``1 frame``, ``3 frames``, ``1 body`` (a COCO file: one row per person of each image)."""
+    unit = entry.get("unit", "frames")
+    return f"{count} { ({'frames': 'frame', 'bodies': 'body'}.get(unit, unit) if count == 1 else unit) }"
+
+
 def _report(entries: list[dict[str, Any]], manifest: Path | None, max_iter: int | None = None) -> int:
     from smplcore.motion.process.task import atomic_write
 
@@ -380,9 +386,14 @@ def _report(entries: list[dict[str, Any]], manifest: Path | None, max_iter: int 
     for e in done:
         unit = e.get("error_unit", "")
         scale, shown = (1000.0, "mm") if unit == "m" else (1.0, unit)
-        print(f"wrote {e['output']}: {e['frames']} frames, mean error {e['mean_error'] * scale:.2f} {shown}")
+        print(f"wrote {e['output']}: {_rows(e['frames'], e)}, mean error {e['mean_error'] * scale:.2f} {shown}")
         if e.get("missing"):
             print(f"  frames without a detection (filled from the nearest frame): {e['missing'][:20]}")
+        if e.get("images_without_person"):
+            unseen = e["images_without_person"]
+            more = f" … (+{len(unseen) - 20})" if len(unseen) > 20 else ""
+            print(f"  images without a person of 6 or more labelled keypoints (not in the output): "
+                  f"{', '.join(unseen[:20])}{more}")  # fmt: skip
     lagging = [e for e in done if e.get("not_converged")]
     if lagging:
         budget = f"--max-iter {max_iter}" if max_iter is not None else "the default --max-iter"
@@ -392,7 +403,7 @@ def _report(entries: list[dict[str, Any]], manifest: Path | None, max_iter: int 
         for e in lagging:
             frames = e["not_converged"]
             more = f" … (+{len(frames) - 20})" if len(frames) > 20 else ""
-            print(f"  {e['input']}: {len(frames)} of {e['frames']} frames {frames[:20]}{more}")
+            print(f"  {e['input']}: {len(frames)} of {_rows(e['frames'], e)} {frames[:20]}{more}")
     print(f"{len(done)} fitted, {len(skipped)} skipped (bad input), {len(kept)} already done, "
           f"{len(lagging)} stopped at the iteration budget")  # fmt: skip
     if manifest is not None:

@@ -183,6 +183,7 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
     if settings.max_iter is not None:
         extra["max_iter"] = settings.max_iter
     labels = None
+    unseen: list[str] = []
     if kind in ("openpose", "coco"):
         from smplcore import keypoints as kp
 
@@ -220,6 +221,8 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
                 results.append((rows, r))
             labels = {"image_id": np.array([str(array.frames[f]) for f in frame]), "person": person}
             count = len(frame)
+            # images with nobody to fit are not in the output: the summary names them
+            unseen = [str(array.frames[f]) for f in sorted(set(range(len(array.frames))) - set(frame.tolist()))]
         error: np.ndarray = np.full(count, np.nan)  # frames without the person: NaN, not converged, nearest frame's fit
         converged = np.zeros(count, bool)
         focal = np.full((count, 2), np.nan)
@@ -281,6 +284,8 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
         "missing": np.flatnonzero(~np.isfinite(error)).tolist(),  # no detection: the nearest frame's fit
         "mean_error": float(np.nanmean(error)),
         "error_unit": "px" if kind in ("openpose", "coco") else "m",
+        "unit": "bodies" if kind == "coco" else "frames",  # COCO: every person of every image, one row each
+        "images_without_person": unseen,
     }
     return arrays, summary
 

@@ -86,9 +86,11 @@ class Motion:
         poses = np.asarray(self.poses)
         trans = np.asarray(self.trans)
         if poses.ndim != 2 or poses.shape[1] != POSE_WIDTH.get(self.model_type, -1):
+            other = _TYPE_BY_WIDTH.get(poses.shape[1]) if poses.ndim == 2 else None
+            hint = f"; {poses.shape[1]} values per frame are a {other!r} motion: model_type={other!r}" if other else ""
             raise ShapeError(
                 f"poses: expected shape (T, {POSE_WIDTH.get(self.model_type, '3 J')}) for a "
-                f"{self.model_type!r} motion, got {poses.shape}"
+                f"{self.model_type!r} motion, got {poses.shape}{hint}"
             )
         if trans.shape != (poses.shape[0], 3):
             raise ShapeError(f"trans: expected shape ({poses.shape[0]}, 3) to match poses, got {trans.shape}")

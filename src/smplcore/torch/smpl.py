@@ -271,7 +271,11 @@ class SMPL(nn.Module):
         if betas.ndim == 1:
             betas = betas[None]
         if betas.shape[-1] > self.num_betas:
-            raise ShapeError(f"betas: expected shape (B, <={self.num_betas}), got {tuple(betas.shape)}")
+            raise ShapeError(
+                f"betas: expected shape (B, <={self.num_betas}), got {tuple(betas.shape)}; the model was made with "
+                f"num_betas={self.num_betas}: make it with num_betas={betas.shape[-1]} (e.g. "
+                f"smplcore.create(..., num_betas={betas.shape[-1]})) if its file holds that many"
+            )
         return reference.shape_blend(self.v_template, self.shapedirs[:, :, : betas.shape[-1]], betas)
 
     # -- forward -----------------------------------------------------------------------------------
