@@ -326,7 +326,7 @@ def _write_mesh(
 
     if isinstance(source, Motion):
         total = source.num_frames
-        params = source.model_params(model.model_type, model.skeleton_joint_names)
+        params = source.model_params(model.model_type, model.skeleton_joint_names, model.num_betas)
         if model.num_dmpls and source.dmpls is not None:
             params["dmpls"] = np.asarray(source.dmpls)[:, : model.num_dmpls]
     else:

@@ -187,7 +187,7 @@ class Evaluator:
         """The motion as keyword parameters of ``loaded`` (betas, expression and DMPL coefficients cut to the
         model's size; the motion's ``dmpls`` only for a model with DMPL blend shapes)."""
         model = loaded.model
-        params = motion.model_params(model.model_type, model.skeleton_joint_names)
+        params = motion.model_params(model.model_type, model.skeleton_joint_names, model.num_betas)
         params["betas"] = params["betas"][:, : model.num_betas]
         if "expression" in params:
             params["expression"] = params["expression"][:, : model.num_expression_coeffs]

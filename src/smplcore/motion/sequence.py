@@ -153,16 +153,20 @@ class Motion:
             dmpls=linear(self.dmpls),
         )
 
-    def model_params(self, model_type: str, joint_names: list[str] | None = None) -> dict[str, np.ndarray]:
+    def model_params(
+        self, model_type: str, joint_names: list[str] | None = None, num_betas: int | None = None
+    ) -> dict[str, np.ndarray]:
         """Keyword arguments for a model of ``model_type``: its pose blocks, ``transl`` and ``betas``.
 
         The full pose is carried over joint by joint by name, so a SMPL+H motion drives SMPL, the
         open model or SMPL-X (joints the source lacks stay at zero rotation). The betas are carried
         over as they are: for the open model, whose betas mean something else, a
-        :class:`ShapeSpaceWarning` says so (once per process) when they are not zero.
+        :class:`ShapeSpaceWarning` says so (once per process) when they are not zero — those of them the model
+        takes: ``num_betas``, the model's count (None: all; 0: none, no warning).
         """
         target = get_spec(model_type)
-        if target.model_type == "open" and self.model_type != "open" and np.any(np.asarray(self.betas) != 0):
+        used = np.asarray(self.betas)[:num_betas]
+        if target.model_type == "open" and self.model_type != "open" and np.any(used != 0):
             warn_open_model_betas(self.model_type, stacklevel=2)
         names = list(joint_names or target.joint_names)
         source_names = list(get_spec(self.model_type).joint_names)

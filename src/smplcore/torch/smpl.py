@@ -19,6 +19,7 @@ from smplcore.family import names as family_names
 from smplcore.family.specs import SMPL as SMPL_SPEC
 from smplcore.family.specs import FamilySpec
 from smplcore.frontend import SETUP_OPTIONS, ModelSetup, evaluate
+from smplcore.frontend.setup import hand_options_from_file
 from smplcore.io.model_data import ModelData
 from smplcore.torch.arrays import ModuleArrays
 from smplcore.torch.keywords import split_keywords, warn_unknown
@@ -106,6 +107,7 @@ class SMPL(nn.Module):
             data = attach_uv(data, uv_path)
         if self.LAYER and "use_pca" not in setup_opts and not _has_hand_pca(data):
             setup_opts["use_pca"] = False  # a Layer never reads PCA hands; smplx still registers the bases
+        setup_opts.update(hand_options_from_file(data, setup_opts))  # AMASS's .npz: no hand PCA, no mean
         self.setup = setup = ModelSetup.build(data, owner=name, **setup_opts)
         self.kernel = check_kernel(kernel)
         self.skinning = setup.skinning  # "lbs" or "dqs" (the skinning option)
