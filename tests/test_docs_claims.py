@@ -33,3 +33,10 @@ def test_render_md_shows_render_to_png_in_its_current_order():
     assert shown, "docs/render.md: the table row of render_to_png"
     documented = [a.strip() for a in shown.group(1).split(",")][:3]
     assert documented == list(inspect.signature(render_to_png).parameters)[:3]
+
+
+def test_fit_md_shows_the_world_of_a_2d_fit_in_a_small_picture():
+    text = (DOCS / "fit.md").read_text()
+    assert "](fit_frames.png)" in text and "tools/render_fit_frames.py" in text
+    picture = DOCS / "fit_frames.png"
+    assert picture.exists() and picture.stat().st_size < 300_000

@@ -116,6 +116,8 @@ def _write_fit_inputs(root: Path) -> None:
     write_coco(root / "inputs" / "people.json", people, 1920, 1080)
     np.save(root / "inputs" / "walk.npy", joints[:, :22])
     write_fake_gmm(root / "gmm_08.pkl")
+    level = np.diag([1.0, -1.0, -1.0])  # a level camera 1.2 m up, looking along -Z, for --extrinsics
+    np.save(root / "camera.npy", np.vstack([np.c_[level, -level @ [0.0, 1.2, 0.0]], [0.0, 0.0, 0.0, 1.0]]))
     try:
         from fakes_vposer import reference, write_folder
 
