@@ -40,3 +40,22 @@ def test_fit_md_shows_the_world_of_a_2d_fit_in_a_small_picture():
     assert "](fit_frames.png)" in text and "tools/render_fit_frames.py" in text
     picture = DOCS / "fit_frames.png"
     assert picture.exists() and picture.stat().st_size < 300_000
+
+
+def test_readme_setup_names_what_the_demo_writes_and_what_the_tests_need(tmp_path):
+    """The setup text names the demo's files and the pose in body.obj (tests/test_demo.py checks the
+    texture files), that the browser tests need Chromium and how long the suite takes; the two setup commands
+    stay as .ci/run greps them."""
+    from smplcore.demo import DEFAULT_POSES, run_demo
+
+    readme = (DOCS.parent / "README.md").read_text()
+    setup = readme[readme.index("## Setup") : readme.index("## Use")]
+    for words in ("body.obj", "body.mtl", "body_texture.png", "body.png", "A-pose", "Chromium", "15 minutes"):
+        assert words in setup, words
+    assert 'pip install -e ".[demo]" && smplcore demo' in setup
+    assert 'pip install torch==2.13.0 && pip install -e ".[test]" && python -m pytest -q' in setup
+    assert DEFAULT_POSES[0] == "a-pose"
+    result = run_demo(tmp_path, render=False, texture=None)  # body.obj: the first body (A-pose)
+    written = np.array([[float(v) for v in line.split()[1:4]] for line in result.mesh_path.read_text().splitlines()
+                        if line.startswith("v ")])  # fmt: skip
+    np.testing.assert_allclose(written, result.vertices[0], atol=1e-5)
