@@ -10,6 +10,8 @@ import smplcore
 
 torch = pytest.importorskip("torch")
 
+pytestmark = pytest.mark.slow  # compilation: a sixth of the suite's time
+
 
 def _inputs(model, batch, grad=False):
     gen = torch.Generator().manual_seed(batch)

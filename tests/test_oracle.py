@@ -89,10 +89,10 @@ def _check(verts, joints, expected, tol):
 @pytest.mark.parametrize("key,options", MODELS)
 @pytest.mark.parametrize("batch", [1, 5])
 @pytest.mark.parametrize("kernel", ["auto", "reference"])
-def test_numpy_front_end_equals_the_oracle(fake_models, key, options, batch, kernel):
+def test_numpy_front_end_equals_the_oracle(fake_models, model_cache, key, options, batch, kernel):
     args, kwargs = _model_args(fake_models, key, options)
     for dtype, tol in ((np.float64, TOL64), (np.float32, TOL32)):
-        model = smplcore.BodyModel(*args, dtype=dtype, kernel=kernel, **kwargs)
+        model = model_cache(smplcore.BodyModel, *args, dtype=dtype, kernel=kernel, **kwargs)
         params = _params(model.setup, batch, seed=batch)
         expected = _expected(model.setup, params, kwargs)
         out = model(**params)
@@ -104,9 +104,9 @@ def test_numpy_front_end_equals_the_oracle(fake_models, key, options, batch, ker
 @pytest.mark.parametrize("key,options", MODELS)
 @pytest.mark.parametrize("batch", [1, 70])  # the skeleton in NumPy (small batch) and in torch
 @pytest.mark.parametrize("mode", ["inference", "autograd", "reference"])
-def test_torch_front_end_equals_the_oracle(fake_models, key, options, batch, mode):
+def test_torch_front_end_equals_the_oracle(fake_models, model_cache, key, options, batch, mode):
     args, kwargs = _model_args(fake_models, key, options)
-    model = smplcore.create(*args, kernel="reference" if mode == "reference" else "auto", **kwargs)
+    model = model_cache(smplcore.create, *args, kernel="reference" if mode == "reference" else "auto", **kwargs)
     params = _params(model.setup, batch, seed=batch + 1)
     expected = _expected(model.setup, params, kwargs)
     tensors = {k: torch.tensor(v, dtype=torch.float32, requires_grad=mode == "autograd") for k, v in params.items()}

@@ -65,6 +65,7 @@ _LAZY_SUBMODULES = {
     "motion",
     "export",
     "render",
+    "join",
 }
 
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
+from smplcore.errors import SmplcoreError
+
 #: the extra of ``pip install "smplcore[...]"`` that brings each optional module (see pyproject.toml)
 EXTRAS = {
     "torch": "torch",
@@ -32,7 +34,7 @@ def install_hint(extra: str) -> str:
     return f'pip install "smplcore[{extra}]"'
 
 
-class MissingDependencyError(ImportError, RuntimeError):
+class MissingDependencyError(SmplcoreError, ImportError, RuntimeError):
     """An optional dependency is not installed; the message says what to install.
 
     Attributes: ``module`` (the missing top-level module), ``purpose`` (what needed it), ``extra`` (the

@@ -8,7 +8,13 @@ import warnings
 from types import FrameType
 
 
-class ModelFileError(ValueError):
+class SmplcoreError(Exception):
+    """The base class of every error smplcore raises on purpose (``except smplcore.errors.SmplcoreError``).
+
+    Each subclass is also the built-in type it used to be (``ValueError``, ``ImportError``, ...)."""
+
+
+class ModelFileError(SmplcoreError, ValueError):
     """A model file is missing, unsafe, truncated, or does not hold what its model type needs.
 
     The message names the file and, where one is at fault, the key with the expected and the
@@ -22,7 +28,7 @@ class ModelFileError(ValueError):
         super().__init__(f"{where}: {message}")
 
 
-class ShapeError(ValueError):
+class ShapeError(SmplcoreError, ValueError):
     """An argument has the wrong shape; the message names the argument, the expected and the found shape."""
 
 

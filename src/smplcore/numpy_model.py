@@ -14,6 +14,7 @@ from smplcore.frontend.inputs import rows
 from smplcore.frontend.setup import hand_options_from_file
 from smplcore.io.locate import read_model
 from smplcore.io.model_data import ModelData
+from smplcore.model.rig import Rig, rig_from_setup
 
 
 @dataclass
@@ -103,6 +104,19 @@ class BodyModel:
         self.check_finite, self.check_rotations = bool(check_finite), bool(check_rotations)
         self.source = SetupArrays(self.setup, lambda a: np.ascontiguousarray(a, dtype=self.dtype))
         self.faces = np.asarray(data.faces)
+
+    @property
+    def rig(self) -> Rig:
+        """The model's public facts with its options applied (:class:`smplcore.model.Rig`), built on first use."""
+        rig = self.__dict__.get("_rig")
+        if rig is None:
+            rig = self.__dict__["_rig"] = rig_from_setup(self.setup)
+        return rig
+
+    @property
+    def model_data(self) -> ModelData:
+        """The file's arrays the model was built from (:class:`smplcore.io.ModelData`, options not applied)."""
+        return self.setup.data
 
     @property
     def arrays(self) -> Any:

@@ -27,6 +27,44 @@ from smplcore.engine.skeleton import (
 )
 
 
+def _sparse_if_sparse(matrix: np.ndarray) -> Any:
+    """``matrix`` as a SciPy CSR matrix when at most a tenth of it is non-zero (a joint regressor), else as it is."""
+    if np.count_nonzero(matrix) > matrix.size // 10:
+        return matrix
+    from scipy import sparse
+
+    return sparse.csr_matrix(matrix)
+
+
+def _stacked(parts: list[np.ndarray], width: int, convert: Callable[[np.ndarray], Any]) -> Any:
+    """``convert(np.concatenate([p.reshape(-1, width) for p in parts]))`` without the float64 copies: each (strided)
+    part is copied once, cast on the way, into the converted array (the same values: a copy and one rounding)."""
+    like = convert(np.zeros((1, 1)))
+    rows = sum(p.shape[0] for p in parts)
+    if is_torch(like):
+        import warnings
+
+        import torch
+
+        out = torch.empty((rows, width), dtype=like.dtype, device=like.device)
+        start = 0
+        for p in parts:
+            with warnings.catch_warnings():  # read-only model arrays: only read here
+                warnings.simplefilter("ignore", UserWarning)
+                source = torch.from_numpy(np.asarray(p))
+            out[start : start + p.shape[0]].view(p.shape).copy_(source)
+            start += p.shape[0]
+        return out
+    if type(like) is not np.ndarray:  # another namespace: the plain way
+        return convert(np.concatenate([np.asarray(p, np.float64).reshape(-1, width) for p in parts]))
+    result = np.empty((rows, width), dtype=like.dtype)
+    start = 0
+    for p in parts:
+        np.copyto(result[start : start + p.shape[0]].reshape(p.shape), p, casting="unsafe")
+        start += p.shape[0]
+    return convert(result)
+
+
 @dataclass
 class BodyArrays:
     """A model's arrays in one namespace, dtype and device, laid out for one GEMM per body part.
@@ -74,20 +112,22 @@ class BodyArrays:
         J_regressor = np.asarray(J_regressor, dtype=np.float64)
         tree = KinematicTree.from_parents(parents)
         num_verts, num_coeffs = v_template.shape[0], shapedirs.shape[-1]
-        rows = [v_template.T.reshape(1, -1), shapedirs.transpose(2, 1, 0).reshape(num_coeffs, 3 * num_verts)]
+        # (rows, 3, V) blocks of the blend basis: template, coefficients, pose correctives (coordinate-major)
+        parts = [v_template.T[None], shapedirs.transpose(2, 1, 0)]
         if posedirs is not None and np.any(posedirs):
-            rows.append(np.asarray(posedirs).transpose(2, 1, 0).reshape(-1, 3 * num_verts))
+            parts.append(np.asarray(posedirs).transpose(2, 1, 0))
         # rest joints of the template and per coefficient: (1 + K, J, 3)
         num_joints = J_regressor.shape[0]
-        per_coeff = (J_regressor @ shapedirs.reshape(num_verts, -1)).reshape(num_joints, 3, num_coeffs)
+        regressor = _sparse_if_sparse(J_regressor)  # 10-40 vertices a joint: no dense (J, V) product
+        per_coeff = np.asarray(regressor @ shapedirs.reshape(num_verts, -1)).reshape(num_joints, 3, num_coeffs)
         per_coeff = per_coeff.transpose(2, 0, 1)
-        joints = np.concatenate([(J_regressor @ v_template)[None], per_coeff])
+        joints = np.concatenate([np.asarray(regressor @ v_template)[None], per_coeff])
         parent = np.maximum(np.asarray(tree.parents), 0)
         offsets = joints - joints[:, parent] * (np.asarray(tree.parents) >= 0)[None, :, None]
         order = list(tree.order)
         joint_basis = np.concatenate([joints[:, order], offsets[:, order]], axis=1).reshape(1 + num_coeffs, -1)
         return cls(
-            blend_basis=convert(np.concatenate(rows, axis=0)),
+            blend_basis=_stacked(parts, 3 * num_verts, convert),
             num_coeffs=num_coeffs,
             joint_basis=convert(joint_basis),
             weights_t=convert(np.ascontiguousarray(np.asarray(weights).T[order])),
@@ -211,6 +251,7 @@ def forward(
     translation: Any = None,
     kernel: str = "blocked",
     skinning: str = "lbs",
+    host_skeleton: bool | None = None,
 ) -> tuple[Any | None, Any, Any]:
     """Posed body.
 
@@ -223,6 +264,8 @@ def forward(
     translation : (B, 3) added to the vertices (not to the joints or transforms), or None.
     kernel : ``"blocked"`` (no autograd graph) or ``"autograd"`` (torch).
     skinning : ``"lbs"`` or ``"dqs"`` (dual-quaternion skinning, :mod:`smplcore.engine.kernels.dqs`).
+    host_skeleton : the plan's choice (:class:`smplcore.engine.kernels.select.Plan`): pose the skeleton in NumPy
+        (a small CPU torch batch without autograd); None: decided here from the arrays (callers without a plan).
 
     Returns
     -------
@@ -231,7 +274,9 @@ def forward(
     transforms : (B, J, 12) skinning transforms in depth order (the rows of ``arrays.weights_t``),
         for posing any further rest-pose points.
     """
-    host = [host_numpy(coeffs), host_numpy(rotmats), host_numpy(arrays.joint_basis, max_batch=None)]
+    host: list[Any] = [None]
+    if host_skeleton is not False:
+        host = [host_numpy(coeffs), host_numpy(rotmats), host_numpy(arrays.joint_basis, max_batch=None)]
     if is_torch(rotmats) and all(a is not None for a in host):  # small batch: per-joint math is faster in NumPy
         posed_joints, transforms = (from_numpy(a) for a in pose_skeleton(host[0], host[1], host[2], arrays.tree))
     else:

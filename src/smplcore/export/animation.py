@@ -268,9 +268,8 @@ def prepare_animation(
     rest_joints = np.asarray(rest_joints, dtype=np.float64)
     dmpls = dmpls_of(model, source, rotations.shape[0])
     if expression is not None and base_expression is not None and not constant:
-        regressor = np.asarray(model.setup.data.J_regressor, dtype=np.float64)
-        joint_dirs = np.einsum("jv,vdk->kjd", regressor, np.asarray(model.setup.exprdirs, np.float64))
-        moved = np.einsum("tk,kjd->tjd", expression - base_expression, joint_dirs)
+        joint_dirs = model.rig.joint_exprdirs  # (J, 3, E)
+        moved = np.einsum("tk,jdk->tjd", expression - base_expression, joint_dirs)
         shift = float(np.linalg.norm(moved, axis=-1).max())
         if shift > 1e-6:
             notes.append(
@@ -307,7 +306,7 @@ def _from_motion(model: Any, motion: Any, notes: list[str], progress: Progress |
     params = motion.model_params(model.model_type, names, model.num_betas)
     frames = motion.num_frames
     full = np.concatenate([np.asarray(params[b], np.float64).reshape(frames, -1) for b in model.pose_blocks], axis=1)
-    full = full + np.asarray(model.setup.pose_mean, np.float64)  # zeros unless the hand mean is not flat
+    full = full + model.rig.pose_mean  # zeros unless the hand mean is not flat
     rotations = np.empty((frames, len(names), 3, 3))
     for start in range(0, frames, _CHUNK):
         stop = min(start + _CHUNK, frames)

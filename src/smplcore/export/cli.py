@@ -322,13 +322,14 @@ def _write_mesh(
     args: argparse.Namespace, model: Any, source: Any, out: Path, save_mesh: Any, weight_colors: Any
 ) -> str:
     from smplcore.export.uv import model_uv
+    from smplcore.model.params import fit_width
     from smplcore.motion import Motion
 
     if isinstance(source, Motion):
         total = source.num_frames
         params = source.model_params(model.model_type, model.skeleton_joint_names, model.num_betas)
         if model.num_dmpls and source.dmpls is not None:
-            params["dmpls"] = np.asarray(source.dmpls)[:, : model.num_dmpls]
+            params["dmpls"] = fit_width("dmpls", np.asarray(source.dmpls), model.num_dmpls)
     else:
         total = _count(source)
         allowed = set(model.pose_blocks) | {"betas", "expression", "transl"} | ({"dmpls"} if model.num_dmpls else set())
@@ -341,13 +342,7 @@ def _write_mesh(
         value = np.asarray(value)
         if name == "betas":
             value = value.reshape(1, -1) if value.ndim < 2 else value[:1]
-            if value.shape[1] > model.num_betas:
-                warnings.warn(
-                    f"betas: the input has {value.shape[1]} coefficients, the model takes "
-                    f"{model.num_betas}; dropping the rest",
-                    stacklevel=2,
-                )
-                value = value[:, : model.num_betas]
+            value = fit_width("betas", value, model.num_betas)
         elif value.ndim > 1 and value.shape[0] == total and total > 1:
             value = value[k : k + 1]
         frame[name] = value

@@ -240,8 +240,8 @@ def save_glb(
     targets: list[dict[str, int]] = []
     expression_slot = None
     if morph_targets:
-        setup = model.setup
-        shape_dirs = np.asarray(setup.shapedirs, dtype=np.float64)
+        rig = model.rig
+        shape_dirs = rig.shapedirs
         for k in range(shape_dirs.shape[2]):
             target_names.append(f"beta_{k}")
             targets.append(
@@ -251,7 +251,7 @@ def save_glb(
                     )
                 }
             )
-        expr_dirs = np.asarray(setup.exprdirs, dtype=np.float64)
+        expr_dirs = rig.exprdirs
         if expr_dirs.shape[2] and anim.expression is not None:
             expression_slot = len(targets)
             for k in range(expr_dirs.shape[2]):
@@ -264,10 +264,10 @@ def save_glb(
                     }
                 )
     dmpl_slot = None
-    if anim.dmpls is not None and getattr(model.setup, "dmpldirs", None) is not None:
+    if anim.dmpls is not None and model.rig.dmpldirs is not None:
         # soft tissue changes every frame: always morph targets (dmpl_0, ...), weights animated below
         dmpl_slot = len(targets)
-        dmpl_dirs = np.asarray(model.setup.dmpldirs, dtype=np.float64)
+        dmpl_dirs = model.rig.dmpldirs
         for k in range(dmpl_dirs.shape[2]):
             target_names.append(f"dmpl_{k}")
             targets.append(

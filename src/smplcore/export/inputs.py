@@ -97,22 +97,10 @@ def _notify(notes: list[str], message: str) -> None:
 
 
 def _fit_width(name: str, value: np.ndarray, width: int, notes: list[str]) -> np.ndarray:
-    """Coefficients (..., n) padded with zeros or truncated (with a warning) to ``width``."""
-    n = value.shape[-1]
-    if n > width:
-        dropped = value[..., width:]
-        if np.any(dropped != 0) and not (name == "betas" and width == 0):  # num_betas=0: dropped on purpose
-            _notify(
-                notes,
-                f"{name}: the input has {n} coefficients but the model takes {width}; dropping the "
-                f"last {n - width} (largest |value| {np.abs(dropped).max():.3g}) -- create the model with "
-                f"num_{'betas' if name == 'betas' else 'expression_coeffs'}={n} to keep them",
-            )
-        return value[..., :width]
-    if n < width:
-        pad = np.zeros(value.shape[:-1] + (width - n,), dtype=value.dtype)
-        return np.concatenate([value, pad], axis=-1)
-    return value
+    """Coefficients (..., n) to ``width`` by the one coefficient rule (:mod:`smplcore.model.params`)."""
+    from smplcore.model.params import fit_width
+
+    return fit_width(name, value, width, notes=notes)
 
 
 def _single_shape(name: str, value: Any, width: int, notes: list[str]) -> np.ndarray:

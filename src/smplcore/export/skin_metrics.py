@@ -99,11 +99,10 @@ def truncation_error(
 def pose_corrective_error(model: Any, anim: Animation) -> float | None:
     """Largest vertex displacement the model's pose correctives cause over the frames of ``anim``
     (None when the model has none): what a rig without them cannot show."""
-    posedirs = getattr(model.setup.data, "posedirs", None)
-    if posedirs is None or not np.any(posedirs):
+    rig = model.rig
+    if not rig.has_pose_correctives:
         return None
-    posedirs = np.asarray(posedirs, dtype=np.float64)
-    basis = posedirs.reshape(posedirs.shape[0] * 3, -1).T  # (P, V * 3)
+    basis = rig.posedirs.reshape(rig.posedirs.shape[0], -1)  # (P, V * 3)
     worst = 0.0
     weights_t = np.ascontiguousarray(anim.weights.T)
     for start in range(0, anim.num_frames, 64):

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from smplcore.errors import ShapeError
+from smplcore.model.params import fit_width
 
 
 def dmpls_of(model: Any, source: Any, frames: int) -> np.ndarray | None:
@@ -25,16 +26,13 @@ def dmpls_of(model: Any, source: Any, frames: int) -> np.ndarray | None:
     value = value.reshape(1, -1) if value.ndim < 2 else value
     if value.shape[0] not in (1, frames):
         raise ShapeError(f"dmpls: expected shape ({frames}, n) or (1, n), got {value.shape}")
-    value = value[:, :width]
-    if value.shape[1] < width:
-        value = np.concatenate([value, np.zeros((value.shape[0], width - value.shape[1]))], axis=1)
+    value = fit_width("dmpls", value, width)  # the one coefficient rule (smplcore.model.params)
     return np.broadcast_to(value, (frames, width)).copy()
 
 
 def dmpl_joint_shift(model: Any, dmpls: np.ndarray) -> float:
     """Largest distance (metres) the (T, n) ``dmpls`` move a rest joint of ``model`` (through its regressor):
     what a rig, whose skeleton is the one without soft tissue, leaves out."""
-    regressor = np.asarray(model.setup.data.J_regressor, dtype=np.float64)
-    joint_dirs = np.einsum("jv,vdk->kjd", regressor, np.asarray(model.setup.dmpldirs, np.float64))
-    moved = np.einsum("tk,kjd->tjd", dmpls, joint_dirs)
+    joint_dirs = model.rig.joint_dmpldirs  # (J, 3, n)
+    moved = np.einsum("tk,jdk->tjd", dmpls, joint_dirs)
     return float(np.linalg.norm(moved, axis=-1).max()) if moved.size else 0.0

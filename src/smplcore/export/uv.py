@@ -88,12 +88,15 @@ def split_seams(faces: Any, vt: Any, ft: Any) -> SeamSplit:
 
 
 def model_uv(model: Any) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(vt, ft)`` of a :class:`smplcore.BodyModel` (or :class:`~smplcore.io.ModelData`), or None."""
+    """``(vt, ft)`` of a model of either front end (its ``rig.uv``), a :class:`smplcore.model.Rig` or a
+    :class:`~smplcore.io.ModelData`, or None."""
     uv = getattr(model, "uv", None)  # a front end that exposes the map itself
     if isinstance(uv, tuple) and len(uv) == 2:
         return uv
-    data = getattr(getattr(model, "setup", None), "data", model)
-    vt, ft = getattr(data, "vt", None), getattr(data, "ft", None)
+    rig = model if hasattr(model, "pose_blocks") else getattr(model, "rig", None)
+    if rig is not None:
+        return None if rig.uv is None else (np.asarray(rig.uv.vt), np.asarray(rig.uv.ft))
+    vt, ft = getattr(model, "vt", None), getattr(model, "ft", None)
     if vt is None or ft is None:
         return None
     return np.asarray(vt), np.asarray(ft)

@@ -17,6 +17,7 @@ shape coefficients ``A_i S_i + Σ_m w_im T_{l_m}``, ``A_i = Σ_m w_im G_{l_m}``,
 from __future__ import annotations
 
 import threading
+import weakref
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -26,9 +27,14 @@ import numpy as np
 import scipy.sparse as sp
 
 from smplcore.engine import KinematicTree, rodrigues, world_transforms
+from smplcore.model.rig import Rig
 
 # Point sets and their arrays kept per model (the fitting stages of a call use a handful).
 _CACHE_SIZE = 48
+
+# The fitting arrays of each rig, kept while the rig (held by its model) lives; nothing is stored on the model.
+_BODIES: weakref.WeakKeyDictionary[Rig, FitBody] = weakref.WeakKeyDictionary()
+_BODIES_LOCK = threading.Lock()
 
 
 @dataclass(frozen=True)
@@ -61,8 +67,8 @@ class Points:
 class FitBody:
     """The arrays of one model for fitting, float64 (see the module docstring).
 
-    Build with :meth:`from_model` from a torch module of :func:`smplcore.create` or a NumPy
-    :class:`smplcore.BodyModel`.
+    Build with :meth:`from_rig` from a :class:`smplcore.model.Rig`, or with :meth:`from_model` from a torch
+    module of :func:`smplcore.create` or a NumPy :class:`smplcore.BodyModel` (their ``rig``).
     """
 
     model_type: str
@@ -103,44 +109,46 @@ class FitBody:
 
     @classmethod
     def from_model(cls, model: Any) -> FitBody:
-        """The fitting arrays of ``model`` (cached on the model object)."""
-        setup = getattr(model, "setup", None)
-        if setup is None or not hasattr(setup, "spec"):
+        """The fitting arrays of ``model``: a torch module of :func:`smplcore.create`, a
+        :class:`smplcore.BodyModel` or a :class:`smplcore.model.Rig` (see :meth:`from_rig`)."""
+        rig = model if isinstance(model, Rig) else getattr(model, "rig", None)
+        if not isinstance(rig, Rig):
             raise TypeError(
-                f"model: expected a model of smplcore.create() or a smplcore.BodyModel, got {type(model).__name__}"
+                f"model: expected a model of smplcore.create(), a smplcore.BodyModel or a smplcore.model.Rig, "
+                f"got {type(model).__name__}"
             )
-        if getattr(setup, "skinning", "lbs") != "lbs":
+        return cls.from_rig(rig)
+
+    @classmethod
+    def from_rig(cls, rig: Rig) -> FitBody:
+        """The fitting arrays of ``rig`` (built once per rig, kept as long as the rig lives)."""
+        if rig.skinning != "lbs":
             raise ValueError(
                 f"model: fitting solves the model's linear blend skinning, this model was made with "
-                f"skinning={setup.skinning!r}; fit a model made with skinning='lbs' (the default) and pose the "
+                f"skinning={rig.skinning!r}; fit a model made with skinning='lbs' (the default) and pose the "
                 "result with either"
             )
-        cached = getattr(model, "_smplcore_fit_body", None)
-        if cached is not None and cached[0] is setup:
-            return cached[1]
-        body = cls._build(setup)
-        try:
-            object.__setattr__(model, "_smplcore_fit_body", (setup, body))
-        except (AttributeError, TypeError):
-            pass
+        with _BODIES_LOCK:
+            body = _BODIES.get(rig)
+        if body is None:
+            body = cls._build(rig)
+            with _BODIES_LOCK:
+                body = _BODIES.setdefault(rig, body)
         return body
 
     @classmethod
-    def _build(cls, setup: Any) -> FitBody:
-        d = setup.data
+    def _build(cls, rig: Rig) -> FitBody:
         f64 = np.float64
-        v_template = np.asarray(d.v_template, f64)
-        dirs = np.concatenate([np.asarray(setup.shapedirs, f64), np.asarray(setup.exprdirs, f64)], axis=-1)
-        regressor = d.J_regressor
-        regressor = np.asarray(regressor.toarray() if hasattr(regressor, "toarray") else regressor, f64)
-        parents = np.array(d.parents, np.int64)
-        parents[0] = -1
-        num_verts, num_joints = v_template.shape[0], len(parents)
-        joint_template = regressor @ v_template
-        joint_shape = np.einsum("jv,vck->jck", regressor, dirs)
+        v_template = rig.template
+        dirs = np.concatenate([rig.shapedirs, rig.exprdirs], axis=-1)
+        regressor = rig.joint_regressor
+        parents = np.array(rig.parents, np.int64)
+        num_verts, num_joints = rig.num_vertices, rig.num_joints
+        joint_template = np.asarray(rig.template_joints)
+        joint_shape = np.concatenate([rig.joint_shapedirs, rig.joint_exprdirs], axis=-1)
         template = np.concatenate([v_template, joint_template])
         shape = np.concatenate([dirs, joint_shape])
-        weights = np.asarray(d.weights, f64)
+        weights = rig.weights
         width = max(1, int((weights > 0).sum(1).max()))
         order = np.argsort(-weights, axis=1, kind="stable")[:, :width]
         w = np.take_along_axis(weights, order, axis=1)
@@ -150,36 +158,26 @@ class FitBody:
         point_w = np.concatenate([w, np.zeros((num_joints, width))])
         point_w[num_verts:, 0] = 1.0
         posedirs = None
-        if d.posedirs is not None and np.any(d.posedirs):
-            posedirs = np.asarray(d.posedirs, f64).reshape(num_verts, 3, num_joints - 1, 9)
-        blocks, start, joint = [], 0, 0
-        for block in setup.spec.pose_blocks:
-            comps = setup.hand_components.get(block.name)
-            comps = None if comps is None else np.asarray(comps, f64)
-            blocks.append(PoseBlock(block.name, start, setup.pose_width(block.name), joint, block.num_joints, comps))
-            start += blocks[-1].width
-            joint += block.num_joints
-        pose_map = None
-        if any(b.components is not None for b in blocks):
-            pose_map = np.zeros((start, 3 * num_joints))
-            for b in blocks:
-                cols = slice(3 * b.first_joint, 3 * (b.first_joint + b.num_joints))
-                pose_map[b.start : b.start + b.width, cols] = np.eye(b.width) if b.components is None else b.components
-        names = list(setup.output_joint_names)
-        rows = np.zeros((len(names), num_verts + num_joints))
-        rows[np.arange(num_joints), num_verts + np.arange(num_joints)] = 1.0
-        extra = list(setup.extra_joint_ids)
-        rows[num_joints + np.arange(len(extra)), extra] = 1.0
-        if setup.spec.landmarks and d.lmk_faces_idx is not None:
-            faces = np.asarray(d.faces)[np.asarray(d.lmk_faces_idx)]
-            first = num_joints + len(extra)
-            for c in range(3):
-                rows[first + np.arange(len(faces)), faces[:, c]] += np.asarray(d.lmk_bary_coords)[:, c]
+        if rig.has_pose_correctives:  # (9 (J - 1), V, 3) -> (V, 3, J - 1, 9)
+            posedirs = np.ascontiguousarray(rig.posedirs.transpose(1, 2, 0)).reshape(num_verts, 3, num_joints - 1, 9)
+        blocks = tuple(
+            PoseBlock(
+                b.name,
+                b.offset,
+                b.width,
+                b.first_joint,
+                b.num_joints,
+                np.asarray(rig.hand_components[b.name], f64) if b.pca else None,
+            )
+            for b in rig.pose_blocks
+        )
+        pose_map = rig.pose_map() if any(b.pca for b in rig.pose_blocks) else None
+        rows = rig.output_rows().toarray()
         body = cls(
-            model_type=setup.spec.model_type,
+            model_type=rig.model_type,
             num_vertices=num_verts,
-            num_betas=setup.num_betas,
-            num_expression=setup.num_expression_coeffs,
+            num_betas=rig.num_betas,
+            num_expression=rig.num_expression_coeffs,
             parents=parents,
             tree=KinematicTree.from_parents(parents),
             template=template,
@@ -190,14 +188,14 @@ class FitBody:
             joint_template=joint_template,
             joint_shape=joint_shape,
             regressor=sp.csr_matrix(regressor),
-            blocks=tuple(blocks),
-            pose_mean=np.asarray(setup.pose_mean, f64).reshape(-1),
+            blocks=blocks,
+            pose_mean=np.array(rig.pose_mean, f64),
             pose_map=pose_map,
-            output_joint_names=names,
+            output_joint_names=list(rig.output_joint_names),
             output_rows=rows,
-            faces=np.asarray(d.faces),
+            faces=np.asarray(rig.faces),
         )
-        body.dynamic_joints = np.flatnonzero(~rows.any(axis=1))
+        body.dynamic_joints = np.asarray(rig.dynamic_output_rows)
         return body
 
     # -- point sets ---------------------------------------------------------------------------------

@@ -14,7 +14,7 @@ from typing import Any, Protocol
 from smplcore.engine import body as engine
 from smplcore.engine import reference
 from smplcore.engine.backend import eye, from_numpy, host_numpy, is_torch, namespace
-from smplcore.engine.kernels.select import select, traced
+from smplcore.engine.kernels.select import Plan, plan, traced
 from smplcore.engine.landmarks import barycentric_points, contour_rows
 from smplcore.engine.rotations import rodrigues
 from smplcore.engine.skeleton import records_gradients
@@ -146,11 +146,16 @@ def evaluate(
     if check_finite and not (is_torch(ref) and (ref.device.type != "cpu" or traced())):
         inputs.check_finite(given)
     zeros = source.constant("zero", ref)  # (1, 1) in the model's dtype and device
-    chosen = select(kernel, zeros, gradients=_records(given.values()), trainable_model=source.trainable())
-    operators = chosen != "reference" and traced()  # under torch.compile: the kernels as custom operators
-    # arrays the operators do not know, or dual-quaternion skinning (no operator): the plain pass (same numbers)
-    if operators and (source.handle is None or setup.skinning != "lbs"):
-        chosen, operators = "reference", False
+    how: Plan = plan(
+        kernel,
+        zeros,
+        gradients=_records(given.values()),
+        trainable_model=source.trainable(),
+        batch=batch,
+        operator_arrays=source.handle is not None,
+        skinning=setup.skinning,
+    )
+    chosen, operators = how.kernel, how.operators
 
     def coefficients(name: str, width: int) -> Any:
         value = given.get(name)
@@ -192,7 +197,13 @@ def evaluate(
         if setup.has_pose_mean:
             full_pose = full_pose + source.constant("pose_mean", zeros)
         rotvecs = full_pose.reshape(batch, -1, 3)
-        rotmats = reference.rodrigues(rotvecs) if chosen == "reference" or operators else _rodrigues(rotvecs)
+        host = host_numpy(rotvecs) if how.host_skeleton else None
+        if host is not None:  # a small CPU batch: the same formula in NumPy, on the same memory
+            rotmats = from_numpy(rodrigues(host))
+        elif chosen == "reference" or operators:
+            rotmats = reference.rodrigues(rotvecs)
+        else:
+            rotmats = rodrigues(rotvecs)
 
     transl = given.get("transl")
     transl = None if transl is None else rows("transl", transl, batch, 3)
@@ -201,7 +212,7 @@ def evaluate(
     elif operators:
         verts, joints = _operator_forward(setup, source, coeffs, rotmats, vertices, transl, chosen == "autograd", zeros)
     else:
-        verts, joints = _fast_forward(setup, source.fast_arrays(), coeffs, rotmats, vertices, transl, chosen)
+        verts, joints = _fast_forward(setup, source.fast_arrays(), coeffs, rotmats, vertices, transl, how)
     if transl is not None:
         shifted = joints + transl[:, None]
         if chosen == "reference":
@@ -245,13 +256,6 @@ def _empty(out: Evaluation) -> Evaluation:
 def _records(values: Any) -> bool:
     values = list(values)
     return bool(values) and records_gradients(*values)
-
-
-def _rodrigues(rotvec: Any) -> Any:
-    """Rotation matrices; for a small torch batch on the CPU without autograd, computed in NumPy
-    (the same formula, a quarter of the time there)."""
-    host = host_numpy(rotvec) if is_torch(rotvec) else None
-    return rodrigues(rotvec) if host is None else from_numpy(rodrigues(host))
 
 
 def _reference_forward(setup: ModelSetup, source: ArraySource, coeffs: Any, rotmats: Any, like: Any) -> tuple:
@@ -328,11 +332,19 @@ def _fast_forward(
     rotmats: Any,
     vertices: bool,
     transl: Any | None,
-    kernel: str,
+    how: Plan,
 ) -> tuple:
-    """Vertices (translated) and output joints (untranslated) by the blocked or autograd kernels."""
+    """Vertices (translated) and output joints (untranslated) by the blocked or autograd kernels, as planned."""
+    kernel = how.kernel
     verts, joints, transforms = engine.forward(
-        coeffs, rotmats, arrays, vertices=vertices, translation=transl, kernel=kernel, skinning=setup.skinning
+        coeffs,
+        rotmats,
+        arrays,
+        vertices=vertices,
+        translation=transl,
+        kernel=kernel,
+        skinning=setup.skinning,
+        host_skeleton=how.host_skeleton,
     )
     parts = [joints]
     if setup.keypoints.ids.size:

@@ -88,9 +88,10 @@ def rows(name: str, value: Any, batch: int, width: int, *, allow_narrower: bool 
         raise ShapeError(
             f"{name}: expected shape {_layouts(width, allow_narrower, joints)}, got {tuple(value.shape)}{hint}"
         )
-    if n < width:
-        pad = xp.zeros_like(value[:, :1])
-        value = xp.concat([value, *([pad] * (width - n))], axis=1)
+    if n < width:  # narrower coefficients: the one rule of smplcore.model.params (zero-padded)
+        from smplcore.model.params import fit_width
+
+        value = fit_width(name, value, width, from_file=False)
     if value.shape[0] != batch:
         value = xp.broadcast_to(value, (batch, width))
     return value

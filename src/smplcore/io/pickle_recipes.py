@@ -15,11 +15,12 @@ from typing import Any
 
 import numpy as np
 
+from smplcore.errors import SmplcoreError
 from smplcore.io.budgets import MAX_LIST_NODES, MAX_NESTING, LoadBudget, element_count, nested_list_size
 from smplcore.io.sparse_values import sparse_value
 
 
-class UnsafePickleError(pickle.UnpicklingError):
+class UnsafePickleError(SmplcoreError, pickle.UnpicklingError):
     """The pickle names a global outside the allow-list, or asks to call or set state on something
     it may not."""
 

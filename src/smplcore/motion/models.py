@@ -65,7 +65,7 @@ class LoadedModel:
     gender: str
     backend: str
     torch_arrays: Any = None
-    torch_source: Any = None  # smplcore.frontend.SetupArrays over torch tensors
+    torch_source: Any = None  # the model's arrays as torch tensors (smplcore.model.model_arrays)
 
     @property
     def model_type(self) -> str:
@@ -77,7 +77,7 @@ class LoadedModel:
 
     @property
     def num_vertices(self) -> int:
-        return int(self.model.setup.data.num_vertices)
+        return int(self.model.rig.num_vertices)
 
 
 def torch_available() -> bool:
@@ -154,10 +154,10 @@ class ModelCache:
         if backend == "torch":
             import torch
 
-            from smplcore.frontend import SetupArrays
+            from smplcore.model.evaluate import model_arrays
 
-            loaded.torch_source = SetupArrays(
-                model.setup, lambda a: torch.from_numpy(np.array(a, dtype=model.dtype, order="C", copy=True))
+            loaded.torch_source = model_arrays(
+                model, lambda a: torch.from_numpy(np.array(a, dtype=model.dtype, order="C", copy=True))
             )
             loaded.torch_arrays = loaded.torch_source.fast_arrays()
         self.models[key] = loaded
@@ -186,13 +186,15 @@ class Evaluator:
     def params(self, motion: Any, loaded: LoadedModel) -> dict[str, np.ndarray]:
         """The motion as keyword parameters of ``loaded`` (betas, expression and DMPL coefficients cut to the
         model's size; the motion's ``dmpls`` only for a model with DMPL blend shapes)."""
+        from smplcore.model.params import fit_width  # the one coefficient rule
+
         model = loaded.model
         params = motion.model_params(model.model_type, model.skeleton_joint_names, model.num_betas)
-        params["betas"] = params["betas"][:, : model.num_betas]
+        params["betas"] = fit_width("betas", params["betas"], model.num_betas)
         if "expression" in params:
-            params["expression"] = params["expression"][:, : model.num_expression_coeffs]
+            params["expression"] = fit_width("expression", params["expression"], model.num_expression_coeffs)
         if model.num_dmpls and motion.dmpls is not None:
-            params["dmpls"] = np.asarray(motion.dmpls)[:, : model.num_dmpls]
+            params["dmpls"] = fit_width("dmpls", np.asarray(motion.dmpls), model.num_dmpls)
         return {k: np.ascontiguousarray(v, dtype=model.dtype) for k, v in params.items()}
 
     def run(
@@ -243,11 +245,11 @@ class Evaluator:
             return out.joints, out.vertices
         import torch
 
-        from smplcore.frontend import evaluate
+        from smplcore.model.evaluate import evaluate
 
         with torch.inference_mode():
             tensors = {k: torch.from_numpy(v) for k, v in params.items()}
-            out = evaluate(loaded.model.setup, loaded.torch_source, tensors, vertices=vertices)
+            out = evaluate(loaded.model, tensors, arrays=loaded.torch_source, outputs="mesh" if vertices else "joints")
             # an Evaluation's vertices and joints are both translated already
             joints = out.joints.numpy()
             verts = None if out.vertices is None else out.vertices.numpy()
@@ -256,8 +258,8 @@ class Evaluator:
 
 def _skeleton_path_applies(loaded: LoadedModel) -> bool:
     """The skeleton-only path covers axis-angle poses with no hand PCA and no mean pose (AMASS's case)."""
-    setup = loaded.model.setup
-    return not setup.hand_components and not np.any(setup.pose_mean)
+    rig = loaded.model.rig
+    return not rig.hand_components and not np.any(rig.pose_mean)
 
 
 def _skeleton_joints(loaded: LoadedModel, params: dict[str, Any]) -> np.ndarray:
@@ -268,8 +270,9 @@ def _skeleton_joints(loaded: LoadedModel, params: dict[str, Any]) -> np.ndarray:
     computed once per chunk when the betas are shared by every frame.
     """
     from smplcore.engine import rest_joints, rodrigues, world_transforms
+    from smplcore.model.params import fit_width
 
-    setup = loaded.model.setup
+    rig = loaded.model.rig
     torch_backend = loaded.backend == "torch"
     xp: Any  # torch or numpy: the array namespace of the chosen backend
     if torch_backend:
@@ -289,23 +292,16 @@ def _skeleton_joints(loaded: LoadedModel, params: dict[str, Any]) -> np.ndarray:
 
     def coefficients(name: str, width: int) -> Any:
         value = params.get(name)
-        if value is None:
-            return zeros(1, width)
-        value = value[:, :width]
-        if value.shape[1] < width:
-            value = xp.concat([value, zeros(value.shape[0], width - value.shape[1])], axis=1)
-        return value
+        return zeros(1, width) if value is None else fit_width(name, value, width)
 
     def run() -> np.ndarray:
-        blocks = [
-            params[b.name] if b.name in params else zeros(batch, 3 * b.num_joints) for b in setup.spec.pose_blocks
-        ]
+        blocks = [params[b.name] if b.name in params else zeros(batch, 3 * b.num_joints) for b in rig.pose_blocks]
         rotmats = rodrigues(xp.concat(blocks, axis=1).reshape(batch, -1, 3))
-        parts = [coefficients("betas", setup.num_betas)]  # the order of setup.blend_dirs
-        if setup.spec.has_expression:
-            parts.append(coefficients("expression", setup.num_expression_coeffs))
-        if setup.num_dmpls:
-            parts.append(coefficients("dmpls", setup.num_dmpls))
+        parts = [coefficients("betas", rig.num_betas)]  # the order of rig.blend_dirs
+        if rig.num_expression_coeffs:
+            parts.append(coefficients("expression", rig.num_expression_coeffs))
+        if rig.num_dmpls:
+            parts.append(coefficients("dmpls", rig.num_dmpls))
         rows = max(p.shape[0] for p in parts)
         parts = [
             p

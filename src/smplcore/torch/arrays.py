@@ -84,7 +84,10 @@ class ModuleArrays:
         ref = m.v_template
         dirs = _blend_dirs(m)
         num_verts = ref.shape[0]
-        posedirs = _host(m.posedirs).reshape(-1, num_verts, 3).transpose(1, 2, 0)
+        # a float32/float64 CPU buffer as it is (no float64 copy): the basis only copies it (same values)
+        pose = m.posedirs.detach().cpu()
+        pose = pose.numpy() if pose.dtype in (torch.float32, torch.float64) else _host(pose)
+        posedirs = pose.reshape(-1, num_verts, 3).transpose(1, 2, 0)
 
         def convert(a: np.ndarray) -> torch.Tensor:
             return torch.as_tensor(np.ascontiguousarray(a), dtype=ref.dtype, device=ref.device)

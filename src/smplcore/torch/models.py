@@ -112,6 +112,10 @@ class MANO(SMPL):
         if self.is_rhand:
             raise ValueError("fix_left_shapedirs: only the left MANO hand has the sign error")
         self.shapedirs[:, 0, :] *= -1
+        flipped = self.setup.shapedirs.copy()
+        flipped[:, 0, :] *= -1
+        self.setup.shapedirs = flipped  # the setup (and so the rig and fitting) matches the buffer
+        self.__dict__.pop("_rig", None)
 
 
 class FLAME(SMPL):

@@ -56,13 +56,13 @@ def show(
         options.setdefault("model_path", model)
     elif isinstance(model, BodyModel):
         models = [model] * len(sources)
-    elif model is not None and hasattr(model, "setup"):  # a torch model of smplcore.create
+    elif model is not None and hasattr(model, "model_data"):  # a torch model of smplcore.create
         extra: dict[str, Any] = {}
         if model.num_expression_coeffs:
             extra["num_expression_coeffs"] = model.num_expression_coeffs
-        if model.setup.spec.model_type in ("smplh", "smplx", "mano"):
+        if model.rig.model_type in ("smplh", "smplx", "mano"):
             extra["use_pca"] = False  # every hand joint gets its own rotation control
-        numpy_model = BodyModel(data=model.setup.data, num_betas=model.num_betas, **extra)
+        numpy_model = BodyModel(data=model.model_data, num_betas=model.num_betas, **extra)
         models = [numpy_model] * len(sources)
     elif model is not None:
         raise ValueError(f"model: expected a smplcore.BodyModel, a smplcore.create model or a path, got {model!r}")

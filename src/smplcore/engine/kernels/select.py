@@ -1,11 +1,15 @@
-"""Which kernel runs a forward call: decided here, from the arrays and the caller's request."""
+"""Which kernel runs a forward call: decided here, once per call, from the arrays and the caller's request.
+
+:func:`plan` returns a :class:`Plan` that the forward follows; nothing below it decides again.
+"""
 
 from __future__ import annotations
 
 import sys
+from dataclasses import dataclass
 from typing import Any
 
-from smplcore.engine.backend import is_torch
+from smplcore.engine.backend import SMALL_BATCH, is_torch
 
 #: The kernels a caller may ask for (``"auto"`` lets :func:`select` choose).
 KERNELS = ("auto", "blocked", "autograd", "reference")
@@ -82,6 +86,55 @@ def select(kernel: str, like: Any, *, gradients: bool, trainable_model: bool = F
             "(some require gradients); use kernel='reference' or 'auto'"
         )
     return kernel
+
+
+@dataclass(frozen=True)
+class Plan:
+    """How one forward call runs, decided once by :func:`plan`.
+
+    Attributes
+    ----------
+    kernel : ``"blocked"``, ``"autograd"`` or ``"reference"`` (see :data:`KERNELS`).
+    operators : under ``torch.compile``: the fast kernels run as custom torch operators
+        (:mod:`smplcore.engine.kernels.ops`).
+    host_skeleton : a small CPU torch batch that autograd does not record: the per-joint math (Rodrigues, the
+        kinematic chain) runs in NumPy on the same memory (a quarter of torch's per-operation overhead).
+    """
+
+    kernel: str
+    operators: bool = False
+    host_skeleton: bool = False
+
+
+def plan(
+    kernel: str,
+    like: Any,
+    *,
+    gradients: bool,
+    trainable_model: bool = False,
+    batch: int = 1,
+    operator_arrays: bool = True,
+    skinning: str = "lbs",
+) -> Plan:
+    """The :class:`Plan` of one call: :func:`select`'s kernel, and how it runs.
+
+    ``operator_arrays``: the model's arrays are known to the custom operators (torch modules); without them, or
+    with dual-quaternion skinning (no operator), a compiled call runs the plain pass (the same numbers).
+    """
+    chosen = select(kernel, like, gradients=gradients, trainable_model=trainable_model)
+    operators = chosen != "reference" and traced()
+    if operators and (not operator_arrays or skinning != "lbs"):
+        chosen, operators = "reference", False
+    host = (
+        chosen != "reference"
+        and not operators
+        and not gradients
+        and is_torch(like)
+        and like.device.type == "cpu"
+        and _cpu_float(like)
+        and batch <= SMALL_BATCH
+    )
+    return Plan(chosen, operators, bool(host))
 
 
 def _cpu_float(x: Any) -> bool:

@@ -10,10 +10,12 @@ from typing import Any
 
 import numpy as np
 
+from smplcore.errors import SmplcoreError
+
 DEFAULT_EXCLUDE = ("shape.npz",)  # AMASS's per-subject shape files: betas and gender, no motion
 
 
-class ProcessError(ValueError):
+class ProcessError(SmplcoreError, ValueError):
     """The job cannot start: bad folders or settings, a locked or incompatible output folder."""
 
 
@@ -104,7 +106,7 @@ class ProcessOptions:
         if self.chunk is not None and self.chunk < 1:
             raise ValueError(f"chunk: expected a positive number of frames, got {self.chunk}")
         parse_axes(self.axes)
-        from smplcore.frontend.setup import check_skinning
+        from smplcore.model import check_skinning
 
         check_skinning(self.skinning)
 
