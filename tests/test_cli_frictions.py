@@ -125,8 +125,11 @@ def test_view_says_1_body(monkeypatch, capsys):
     assert "serving 1 body at http://" in capsys.readouterr().out
 
 
-def test_render_prints_a_shape_space_warning_as_one_line(tmp_path, capsys):
+def test_render_prints_a_shape_space_warning_as_one_line(tmp_path, capsys, monkeypatch):
     pytest.importorskip("imageio_ffmpeg", reason="video needs the view extra")
+    import smplcore.motion.sequence
+
+    monkeypatch.setattr(smplcore.motion.sequence, "_warned_shape_space", set())  # said once per process
     from smplcore.cli import main
     from smplcore.motion import Motion, save_motion
 
