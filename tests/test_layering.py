@@ -46,17 +46,6 @@ APPLICATIONS = LAYERS[5]
 KNOWN = {
     # the joint_regressors option loads keypoint regressors (issue 24: regressors through one public io entry)
     ("smplcore.frontend.setup", "smplcore.keypoints"),
-    # auxiliary-file readers reached in io's internals (issue 24: one public io entry)
-    ("smplcore.fit.convert", "smplcore.io.budgets"),
-    ("smplcore.fit.vposer", "smplcore.io.containers"),
-    ("smplcore.keypoints.regressor", "smplcore.io.containers"),
-    ("smplcore.keypoints.regressor", "smplcore.io.safe_pickle"),
-    ("smplcore.motion.models", "smplcore.io.locate"),
-    ("smplcore.motion.models", "smplcore.io.model_files"),
-    ("smplcore.motion.process.preflight", "smplcore.io.locate"),
-    ("smplcore.motion.sequence", "smplcore.io.containers"),
-    # fit's CLI writes with the motion pipeline's atomic_write (issue 24: one jobs/ runner)
-    ("smplcore.fit.cli", "smplcore.motion.process.task"),
     # UV maps and parameter files live in export (issue 24: UVs where render, view and export all use them)
     ("smplcore.render.offscreen", "smplcore.export.uv"),
     ("smplcore.render.texture", "smplcore.export.uv"),

@@ -12,6 +12,7 @@ EXTRAS = {
     "torch": "torch",
     "trimesh": "export",
     "pygltflib": "export",
+    "pxr": "export",
     "pyrender": "render",
     "OpenGL": "render",
     "PIL": "render",
@@ -23,7 +24,7 @@ EXTRAS = {
     "threadpoolctl": "fit",
 }
 
-_DISPLAY = {"PIL": "Pillow", "OpenGL": "PyOpenGL"}
+_DISPLAY = {"PIL": "Pillow", "OpenGL": "PyOpenGL", "pxr": "usd-core"}
 
 #: the tested torch release (the README's install line)
 TORCH_INSTALL = "pip install torch==2.13.0"

@@ -12,7 +12,13 @@ from smplcore.errors import ModelFileError, ShapeError
 
 # Modules that add their own subcommand: each has ``add_parser(subparsers)`` registering a parser whose
 # ``run`` default is a function ``(args) -> exit status``.
-_SUBCOMMAND_MODULES = ("smplcore.export.cli", "smplcore.fit.cli", "smplcore.motion.cli", "smplcore.view.cli")
+_SUBCOMMAND_MODULES = (
+    "smplcore.export.cli",
+    "smplcore.fit.cli",
+    "smplcore.motion.cli",
+    "smplcore.view.cli",
+    "smplcore.measure.cli",
+)
 
 
 def _version() -> str:
@@ -44,6 +50,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         mesh_format=args.format,
         render=not args.no_render,
         texture=None if args.texture == "none" else args.texture,
+        age=args.age,
     )
     print(f"mesh:  {result.mesh_path}")
     if result.texture_path is not None:
@@ -91,6 +98,9 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FILE",
         help="image drawn on the body through the model's UV map (the open model, SMPL-X), in the PNG and "
         "with the OBJ; 'uv-grid' (default) a generated grid that shows the mapping; 'none' for no texture",
+    )
+    demo.add_argument(
+        "--age", type=float, default=None, help="the open model at this age in years, 1-90 (default: the adult)"
     )
     demo.set_defaults(run=_cmd_demo)
 

@@ -108,6 +108,7 @@ def run_demo(
     width: int = 1200,
     height: int = 500,
     texture: str | Path | None = "uv-grid",
+    age: float | None = None,
 ) -> DemoResult:
     """Pose the model and write ``body.{obj,ply}`` (first pose) and ``body.png`` (all poses).
 
@@ -127,6 +128,7 @@ def run_demo(
     texture : for a model with a UV map (the open model, SMPL-X): an image file drawn on the body, in the
         rendering and with the OBJ (``body.mtl`` + ``body_texture.png``); ``"uv-grid"`` (default) a generated grid
         that shows how the map lies on the body; None for an untextured body.
+    age : the open model at this age in years (1-90; see docs/measure.md); None for the adult model.
     """
     from smplcore.export.mesh import save_mesh
     from smplcore.export.uv import model_uv, resolve_texture
@@ -143,6 +145,8 @@ def run_demo(
         options["use_pca"] = _has_hand_pca(data) if use_pca is None else bool(use_pca)
         if getattr(data, "hands_mean_left", None) is None:
             options["flat_hand_mean"] = True  # no mean hand pose in the file (AMASS's): flat, without a warning
+    if age is not None:
+        options["age"] = float(age)
     model = BodyModel(data=data, **options)
     if model.model_type not in ("smpl", "open", "smplh", "smplx"):
         raise ValueError(f"the demo poses bodies; a {model.model_type!r} model has no SMPL body pose")

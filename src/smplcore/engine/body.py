@@ -27,13 +27,16 @@ from smplcore.engine.skeleton import (
 )
 
 
-def _sparse_if_sparse(matrix: np.ndarray) -> Any:
-    """``matrix`` as a SciPy CSR matrix when at most a tenth of it is non-zero (a joint regressor), else as it is."""
-    if np.count_nonzero(matrix) > matrix.size // 10:
-        return matrix
-    from scipy import sparse
-
-    return sparse.csr_matrix(matrix)
+def regress(regressor: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``regressor @ values`` for a (J, V) joint regressor and (V, ...) values, over each row's non-zero columns
+    only (10-40 vertices a joint): no dense (J, V) product, and no SciPy import on the way to the first body."""
+    regressor = np.asarray(regressor, dtype=np.float64)
+    flat = np.asarray(values, dtype=np.float64).reshape(values.shape[0], -1)
+    out = np.empty((regressor.shape[0], flat.shape[1]))
+    for j, row in enumerate(regressor):
+        cols = np.flatnonzero(row)
+        out[j] = row[cols] @ flat[cols]
+    return out.reshape((regressor.shape[0],) + tuple(values.shape[1:]))
 
 
 def _stacked(parts: list[np.ndarray], width: int, convert: Callable[[np.ndarray], Any]) -> Any:
@@ -117,11 +120,8 @@ class BodyArrays:
         if posedirs is not None and np.any(posedirs):
             parts.append(np.asarray(posedirs).transpose(2, 1, 0))
         # rest joints of the template and per coefficient: (1 + K, J, 3)
-        num_joints = J_regressor.shape[0]
-        regressor = _sparse_if_sparse(J_regressor)  # 10-40 vertices a joint: no dense (J, V) product
-        per_coeff = np.asarray(regressor @ shapedirs.reshape(num_verts, -1)).reshape(num_joints, 3, num_coeffs)
-        per_coeff = per_coeff.transpose(2, 0, 1)
-        joints = np.concatenate([np.asarray(regressor @ v_template)[None], per_coeff])
+        per_coeff = regress(J_regressor, shapedirs).transpose(2, 0, 1)  # (K, J, 3)
+        joints = np.concatenate([regress(J_regressor, v_template)[None], per_coeff])
         parent = np.maximum(np.asarray(tree.parents), 0)
         offsets = joints - joints[:, parent] * (np.asarray(tree.parents) >= 0)[None, :, None]
         order = list(tree.order)

@@ -47,6 +47,7 @@ from smplcore.export.inputs import (  # noqa: E402
     _motion_input,
     _notify,
     _single_shape,
+    fit_result_params,
     load_input,
 )
 from smplcore.export.skin_metrics import (  # noqa: E402,F401
@@ -238,6 +239,7 @@ def prepare_animation(
     notes: list[str] = []
     if isinstance(source, (str, Path)):
         source = load_input(source, fps=fps)
+    source = fit_result_params(source)  # a FitResult: its parameters, as NumPy arrays
     if isinstance(source, Mapping) and "poses" in source:
         source = _motion_input(source, fps=fps)
     if isinstance(source, Motion):

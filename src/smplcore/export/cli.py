@@ -9,6 +9,7 @@ Examples::
     smplcore export walk.npz -o walk.glb --texture skin.png    # UVs (open model, SMPL-X) + a texture
     smplcore export walk.npz -o walk.glb --model-path models/ --model-type smplh
     smplcore export params.npz -o body.glb                # one parameter set (betas, body_pose, ...)
+    smplcore export walk.npz -o walk.usdz                 # rigged USDZ; also .usd/.smpl (see export/cli_usd.py)
 """
 
 from __future__ import annotations
@@ -139,6 +140,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="hand poses are relative to the model's mean hand pose (smplx's default)",
     )
     parser.add_argument("--no-progress", "--quiet", dest="no_progress", action="store_true", help="no progress bar")
+    from smplcore.export.cli_usd import add_arguments  # USD / USDZ, .smpl, the Blender add-on npz
+
+    add_arguments(parser)
     parser.set_defaults(run=run)
 
 
@@ -223,12 +227,17 @@ def _progress_bar(total: int, disable: bool):
 def run(args: argparse.Namespace) -> int:
     from smplcore.export import save_bvh, save_glb, save_mesh, weight_colors
     from smplcore.export.animation import load_input, prepare_animation
+    from smplcore.export.cli_usd import format_of, run_interchange
     from smplcore.motion import Motion
 
+    interchange = format_of(args)  # USD / USDZ, .smpl, the Blender add-on npz
+    if interchange is not None:
+        return run_interchange(args, interchange)
     out = Path(args.output)
     suffix = out.suffix.lower()
     if suffix not in FORMATS:
-        raise ValueError(f"-o/--output: unsupported suffix {out.suffix!r}; expected one of {', '.join(FORMATS)}")
+        expected = ", ".join(FORMATS + (".usd", ".usda", ".usdc", ".usdz", ".smpl"))
+        raise ValueError(f"-o/--output: unsupported suffix {out.suffix!r}; expected one of {expected}")
     if args.texture is not None and suffix not in (".obj", ".glb"):
         raise ValueError(f"--texture: textures are written to .obj and .glb files, not {out.suffix!r}")
     source = load_input(args.input, fps=args.fps)  # the rate of a motion that states none

@@ -23,10 +23,10 @@ def _text(value: Any) -> str:
 
 
 def load_input(path: str | Path, *, fps: float | None = None) -> Any:
-    """Read an export input file: an AMASS-style motion ``.npz`` (has ``poses``) as a
-    :class:`~smplcore.motion.Motion`, or a parameter set (``.npz`` or ``.json`` whose keys are model
-    keyword arguments -- ``betas``, ``global_orient``, ``body_pose``, ``transl``, ... -- and
-    optionally ``fps``) as a dict of arrays. No pickles are read.
+    """Read an export input file: an AMASS-style motion ``.npz`` (has ``poses``) or a ``.smpl`` file
+    (:mod:`smplcore.export.smplfile`) as a :class:`~smplcore.motion.Motion`, or a parameter set (``.npz`` or
+    ``.json`` whose keys are model keyword arguments -- ``betas``, ``global_orient``, ``body_pose``, ``transl``,
+    ... -- and optionally ``fps``) as a dict of arrays. No pickles are read.
 
     ``fps`` is the frame rate of a motion that states none (see :func:`_motion_input`); a motion
     without a frame rate and without ``fps`` is refused."""
@@ -44,6 +44,10 @@ def load_input(path: str | Path, *, fps: float | None = None) -> Any:
         if "poses" in raw:
             return _motion_input(raw, str(path), fps=fps)
         return {k: np.asarray(v, dtype=np.float64) if k not in ("gender", "model_type") else v for k, v in raw.items()}
+    if suffix == ".smpl":
+        from smplcore.export.smplfile import read_smpl
+
+        return read_smpl(path).to_motion(default_fps=fps or 30.0)
     if suffix == ".npz":
         with np.load(path, allow_pickle=False) as data:
             keys = set(data.files)
@@ -52,9 +56,25 @@ def load_input(path: str | Path, *, fps: float | None = None) -> Any:
         _require_frame_rate(keys, path, fps)
         return load_motion(path, default_fps=fps)
     raise ValueError(
-        f"{path}: unsupported input {path.suffix!r}; expected an AMASS-style .npz motion or a "
+        f"{path}: unsupported input {path.suffix!r}; expected an AMASS-style .npz motion, a .smpl file or a "
         "parameter set (.npz or .json)"
     )
+
+
+def fit_result_params(source: Any) -> Any:
+    """A fit result (:class:`smplcore.fit.FitResult`, anything with a ``params`` dict of forward keywords) as a
+    dict of NumPy arrays, one row per fitted body = per frame; any other ``source`` as it is."""
+    params = getattr(source, "params", None)
+    if isinstance(source, Mapping) or not isinstance(params, Mapping):
+        return source
+    out: dict[str, Any] = {}
+    for key, value in params.items():
+        if value is None:
+            continue
+        if hasattr(value, "detach"):  # a torch tensor
+            value = value.detach().cpu().numpy()
+        out[key] = np.asarray(value, dtype=np.float64)
+    return out
 
 
 def _require_frame_rate(keys: Any, source: str | Path, fps: float | None) -> None:

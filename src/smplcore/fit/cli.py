@@ -258,7 +258,7 @@ _MODEL: dict[str, Any] = {}
 def fit_one(source: str, output: str, settings: Any) -> dict[str, Any]:
     """Fit ``source`` and write ``output`` atomically; never raises for a bad input (a manifest entry)."""
     from smplcore.fit.inputs import build_model, fit_input
-    from smplcore.motion.process.task import atomic_write
+    from smplcore.jobs import atomic_write
 
     start = time.perf_counter()
     entry: dict[str, Any] = {"input": source, "output": output, "status": "skipped"}
@@ -376,7 +376,7 @@ def _rows(count: int, entry: dict[str, Any]) -> str:
 
 
 def _report(entries: list[dict[str, Any]], manifest: Path | None, max_iter: int | None = None) -> int:
-    from smplcore.motion.process.task import atomic_write
+    from smplcore.jobs import atomic_write
 
     done = [e for e in entries if e["status"] == "done"]
     skipped = [e for e in entries if e["status"] == "skipped"]

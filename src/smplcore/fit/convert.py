@@ -64,8 +64,7 @@ def _source_vertices(model: Any, params: dict[str, Any]) -> tuple[np.ndarray, np
 
 def read_deformation_transfer(path: str | Path, num_source: int, num_target: int) -> Correspondence:
     """The vertex map of an official deformation-transfer pickle (``mtx`` or ``matrix``), read safely."""
-    from smplcore.io import safe_load
-    from smplcore.io.budgets import LoadBudget
+    from smplcore.io import LoadBudget, safe_load
 
     path = Path(path)
     if not path.is_file():

@@ -12,6 +12,7 @@ import numpy as np
 from smplcore.errors import ShapeError
 from smplcore.fit.body import FitBody
 from smplcore.fit.solver import State
+from smplcore.model.params import fit_width
 
 
 class FitResult:
@@ -182,10 +183,8 @@ def params_to_state(body: FitBody, params: dict[str, Any], batch: int) -> State:
         if array.ndim == 1:
             array = array[None]
         array = array.reshape(array.shape[0], -1)
-        if array.shape[1] < width and name in ("betas", "expression"):
-            array = np.concatenate([array, np.zeros((array.shape[0], width - array.shape[1]))], axis=1)
-        if array.shape[1] > width and name in ("betas", "expression"):
-            array = array[:, :width]
+        if name in ("betas", "expression"):  # the one coefficient rule (smplcore.model.params)
+            array = fit_width(name, array, width)
         if array.shape[1] != width or array.shape[0] not in (1, batch):
             raise ShapeError(f"{name}: expected ({batch}, {width}), got {tuple(array.shape)}")
         return np.broadcast_to(array, (batch, width)).copy()

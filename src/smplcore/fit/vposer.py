@@ -154,8 +154,7 @@ class VPoserPrior:
     def load(cls, path: str | os.PathLike[str]) -> VPoserPrior:
         """Read VPoser v2 from a Lightning ``.ckpt``, a state_dict ``.pt``/``.npz``, or the ``V02_05/`` folder
         (its newest ``snapshots/*.ckpt``). Nothing in the file is run; torch is not needed."""
-        from smplcore.io import load_torch_file
-        from smplcore.io.containers import read_container
+        from smplcore.io import load_torch_file, read_container
 
         file = _checkpoint_file(Path(path))
         if file.suffix.lower() == ".npz":

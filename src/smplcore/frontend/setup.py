@@ -149,7 +149,7 @@ class ModelSetup:
         use_hands: bool = True,
         use_feet_keypoints: bool = True,
         vertex_ids: dict | None = None,
-        age: str = "adult",
+        age: str | float = "adult",
         kid_template_path: str | Path | None = None,
         v_template: np.ndarray | None = None,
         joint_regressors: Any = None,
@@ -175,10 +175,14 @@ class ModelSetup:
             if v_template.shape != data.v_template.shape:
                 raise ShapeError(f"v_template: expected shape {data.v_template.shape}, got {v_template.shape}")
             data = data.replace(v_template=v_template)
-        if age == "kid":
+        if not isinstance(age, str):  # years: the open model's age axis
+            from smplcore.io.open_ages import at_age
+
+            data, shapedirs = at_age(data, age, shapedirs)
+        elif age == "kid":
             shapedirs, num_betas = _with_kid_component(data, shapedirs, kid_template_path), num_betas + 1
         elif age != "adult":
-            raise ValueError(f"age: expected 'adult' or 'kid', got {age!r}")
+            raise ValueError(f"age: expected 'adult', 'kid' or years (the open model), got {age!r}")
 
         exprdirs = np.zeros((data.num_vertices, 3, 0))
         if spec.has_expression:

@@ -181,15 +181,16 @@ def _read_npy(fh: BinaryIO) -> np.ndarray | Any:
     return read_npy(fh, LoadBudget("<.npy data>", size), size)
 
 
-def _read_exactly(fh: IO[bytes], nbytes: int) -> bytes:
-    chunks, left = [], nbytes
-    while left:
-        chunk = fh.read(min(left, _CHUNK))
-        if not chunk:
-            raise EOFError(f"expected {nbytes} bytes of array data, found {nbytes - left}")
-        chunks.append(chunk)
-        left -= len(chunk)
-    return b"".join(chunks) if len(chunks) != 1 else chunks[0]
+def _read_exactly(fh: IO[bytes], nbytes: int) -> bytearray:
+    """``nbytes`` bytes of ``fh``, read in chunks straight into one buffer (no second full-size copy)."""
+    out = bytearray(nbytes)
+    view, got = memoryview(out), 0
+    while got < nbytes:
+        count = fh.readinto(view[got : got + min(nbytes - got, _CHUNK)])  # type: ignore[attr-defined]
+        if not count:
+            raise EOFError(f"expected {nbytes} bytes of array data, found {got}")
+        got += count
+    return out
 
 
 class LazyNpz(Mapping):

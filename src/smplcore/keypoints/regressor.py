@@ -187,11 +187,11 @@ def _read_matrix(path: Path, key: str | None) -> tuple[Any, tuple[str, ...] | No
             if head.startswith(_NPY_MAGIC):
                 value = _read_npy(fh)
             elif head.startswith(_ZIP_MAGIC):
-                from smplcore.io.containers import read_container
+                from smplcore.io import read_container
 
                 value = read_container(path)
             elif head[:1] == b"\x80" or head[:1] in (b"(", b"}"):
-                from smplcore.io.safe_pickle import safe_load
+                from smplcore.io import safe_load
 
                 value = safe_load(fh)
             else:
@@ -199,7 +199,7 @@ def _read_matrix(path: Path, key: str | None) -> tuple[Any, tuple[str, ...] | No
         except ModelFileError:
             raise
         except pickle.UnpicklingError as exc:
-            from smplcore.io.safe_pickle import UnsafePickleError
+            from smplcore.io import UnsafePickleError
 
             if isinstance(exc, UnsafePickleError):
                 raise ModelFileError(path, f"refused to load: {exc}; nothing in the file was run") from None
@@ -217,7 +217,7 @@ def _read_npy(fh: Any) -> Any:
     try:
         return np.load(fh, allow_pickle=False)
     except ValueError:  # an object array: a pickle after the header, read through the allow-list
-        from smplcore.io.safe_pickle import materialize, safe_load
+        from smplcore.io import materialize, safe_load
 
         fh.seek(0)
         np.lib.format.read_magic(fh)
@@ -329,7 +329,7 @@ def open_model_regressor(convention: str) -> Regressor:
     Built by ``tools/build_open_regressors.py`` from the open model's named vertices and its joint
     regressor; not Human3.6M's learned regressor or any official SMPL file (see docs/keypoints.md).
     """
-    from smplcore.io.containers import read_container
+    from smplcore.io import read_container
     from smplcore.keypoints.conventions import convention_key
 
     key = convention_key(convention)

@@ -289,7 +289,7 @@ def rig_from_setup(setup: ModelSetup, *, shapedirs: np.ndarray | None = None) ->
     """The :class:`Rig` of a front end's :class:`~smplcore.frontend.setup.ModelSetup`.
 
     ``shapedirs`` replaces the setup's shape basis (MANO's ``fix_left_shapedirs``)."""
-    from scipy import sparse
+    from smplcore.engine.body import regress
 
     spec, d = setup.spec, setup.data
     num_vertices, num_joints = d.num_vertices, d.num_joints
@@ -299,11 +299,8 @@ def rig_from_setup(setup: ModelSetup, *, shapedirs: np.ndarray | None = None) ->
     expr = _f64(setup.exprdirs)
     dmpl = None if setup.dmpldirs is None else _f64(setup.dmpldirs)
 
-    sparse_regressor = sparse.csr_matrix(regressor)  # 10-40 vertices a row: the joint directions cost little
-
-    def joint_dirs(dirs: np.ndarray) -> np.ndarray:
-        flat = np.asarray(sparse_regressor @ dirs.reshape(num_vertices, -1))
-        return flat.reshape(num_joints, *dirs.shape[1:])
+    def joint_dirs(dirs: np.ndarray) -> np.ndarray:  # over each joint's few vertices: the directions cost little
+        return regress(regressor, dirs)
 
     num_pose = 9 * (num_joints - 1)
     has_correctives = d.posedirs is not None and bool(np.any(d.posedirs))
@@ -341,7 +338,7 @@ def rig_from_setup(setup: ModelSetup, *, shapedirs: np.ndarray | None = None) ->
         dmpldirs=dmpl,
         posedirs=posedirs,
         joint_regressor=regressor,
-        template_joints=np.asarray(sparse_regressor @ template),
+        template_joints=regress(regressor, template),
         joint_shapedirs=joint_dirs(shape),
         weights=_f64(d.weights),
         parents=np.asarray(d.parents, np.int64),

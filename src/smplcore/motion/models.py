@@ -124,8 +124,7 @@ class ModelCache:
     models: dict[tuple[str, str], LoadedModel] = field(default_factory=dict)
 
     def get(self, model_type: str, gender: str) -> LoadedModel:
-        from smplcore.io.locate import locate_model_file
-        from smplcore.io.model_files import load_model
+        from smplcore.io import load_model, locate_model_file
         from smplcore.numpy_model import BodyModel
 
         spec = get_spec(model_type)

@@ -214,7 +214,7 @@ _MOTION_KEYS = (
 def _read_motion_arrays(path: Path) -> dict[str, Any]:
     """The motion keys of an ``.npz`` (only those are inflated, within the loader's budgets), else the
     whole container; every failure is a ModelFileError naming the file."""
-    from smplcore.io.containers import LazyNpz, read_container
+    from smplcore.io import LazyNpz, read_container
 
     container = read_container(path)
     if isinstance(container, LazyNpz):

@@ -176,7 +176,7 @@ def estimate_output_bytes(tasks: Iterable[Task], options: ProcessOptions) -> int
 
 def _open_vertices() -> int:
     """The packaged open model's vertex count (from its header)."""
-    from smplcore.io.locate import OPEN_MODEL_PATH
+    from smplcore.io import OPEN_MODEL_PATH
 
     try:
         with zipfile.ZipFile(OPEN_MODEL_PATH) as archive, archive.open("v_template.npy") as fh:

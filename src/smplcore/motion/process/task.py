@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import contextlib
 import errno
 import fnmatch
 import os
-import secrets
 import time
 import warnings
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -17,19 +15,10 @@ from typing import Any
 
 import numpy as np
 
+from smplcore.jobs import DISK_FULL_ERRNOS, TMP_SUFFIX, atomic_write, is_disk_full  # noqa: F401 (re-exported)
 from smplcore.motion.process.options import DEFAULT_EXCLUDE, ProcessOptions, _apply_axes
 
-TMP_SUFFIX = ".smplcore-tmp"
-# The errors that mean "no room to write": no space left, over quota, over the file-size limit.
-DISK_FULL_ERRNOS = frozenset(
-    code for code in (errno.ENOSPC, getattr(errno, "EDQUOT", None), errno.EFBIG) if code is not None
-)
 NOT_DONE = "not_done"  # manifest status of a file a stopped run did not finish (a rerun does it)
-
-
-def is_disk_full(exc: BaseException) -> bool:
-    """Whether ``exc`` says the disk (or quota, or file-size limit) has no room for what was written."""
-    return isinstance(exc, OSError) and exc.errno in DISK_FULL_ERRNOS
 
 
 def disk_full_reason(exc: OSError, what: str) -> str:
@@ -50,22 +39,6 @@ class Task:
 
 def _now() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
-
-
-def atomic_write(path: Path, write: Callable[[Any], None]) -> None:
-    """Write ``path`` through ``write(file)`` under a temporary name, fsync, then rename into place."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}{TMP_SUFFIX}")
-    try:
-        with open(tmp, "wb") as fh:
-            write(fh)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
 
 
 @dataclass
