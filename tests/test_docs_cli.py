@@ -41,6 +41,10 @@ _AMASS_ON_OPEN = (
     "walk.npz is an AMASS SMPL+H motion on the open model: docs/export.md and docs/view.md show the betas warning",
 )
 WARNS: dict[str, tuple[tuple[str, ...], str]] = {
+    "smplcore export walk.npz -o walk.smpl": (
+        ("no DMPL soft tissue",),
+        "docs/export.md's .smpl example prints the same note (a .smpl has no soft tissue)",
+    ),
     "smplcore export walk.npz -o walk.bvh": _AMASS_ON_OPEN,  # a BVH has no mesh: no DMPL note
     "smplcore export walk.npz -o walk_cm.bvh": _AMASS_ON_OPEN,
     "smplcore export walk.npz --model-path": _AMASS_ON_OPEN,
