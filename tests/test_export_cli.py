@@ -155,7 +155,7 @@ def test_texture_option(tmp_path, capsys, smplh_motion, fake_models):
     assert (tmp_path / "t_texture.png").is_file() and "map_Kd t_texture.png" in (tmp_path / "t.mtl").read_text()
     capsys.readouterr()
     assert main(["export", str(path), "-o", str(tmp_path / "t.bvh"), "--texture", "uv-grid"]) == 2
-    assert "--texture: textures are written to .obj and .glb" in capsys.readouterr().err
+    assert "--texture: textures are written to .obj, .glb and .fbx" in capsys.readouterr().err
     smpl = str(fake_models["smpl_neutral_npz"])
     assert main(["export", str(path), "-o", str(tmp_path / "s.obj"), "--model-path", smpl, "--texture", "uv-grid"]) == 2
     assert "--texture: the smpl model has no UV map" in capsys.readouterr().err
@@ -163,7 +163,7 @@ def test_texture_option(tmp_path, capsys, smplh_motion, fake_models):
 
 def test_errors_exit_with_status_2(tmp_path, capsys, smplh_motion):
     path, _ = smplh_motion
-    assert main(["export", str(path), "-o", str(tmp_path / "x.fbx")]) == 2
+    assert main(["export", str(path), "-o", str(tmp_path / "x.abc")]) == 2
     assert "unsupported suffix" in capsys.readouterr().err
     assert main(["export", str(tmp_path / "missing.npz"), "-o", str(tmp_path / "x.glb")]) == 2
     assert "no such file" in capsys.readouterr().err

@@ -103,7 +103,7 @@ def test_smplcore_view_shows_a_body_in_chromium(browser, tmp_path):
             f"smplcore view did not start: {line}{proc.stdout.read() if proc.poll() else ''}"
         )
         page = browser.new_page(viewport=VIEWPORT)
-        page.goto(f"http://127.0.0.1:{port}/")
+        page.goto(line.split(" at ", 1)[1].strip())  # the printed address, with the session token
         img = wait_for(page, lambda im: body_fraction(im) > 0.02)
         from PIL import Image
 

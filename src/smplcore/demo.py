@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -63,17 +64,26 @@ def body_pose_from_names(rotations: dict[str, tuple[float, float, float]]) -> np
 
 def load_pose_file(path: str | Path) -> np.ndarray:
     """Body pose(s) from a ``.npy``/``.npz``/``.txt`` file: (69,), (72,) (root first), or (N, 69|72)."""
+    import io
+
+    from smplcore.io import numeric_array, read_arrays, read_text
+
     path = Path(path)
-    if path.suffix == ".npz":
-        with np.load(path, allow_pickle=False) as data:
+    if path.suffix in (".npz", ".npy"):
+        data = read_arrays(path, "a pose file (.npy or .npz)")
+        key = None
+        if isinstance(data, Mapping):
             key = next((k for k in ("body_pose", "poses", "pose") if k in data), None)
             if key is None:
                 raise ValueError(f"--pose: {path} has none of the keys body_pose, poses, pose ({list(data)})")
-            pose = data[key]
-    elif path.suffix == ".npy":
-        pose = np.load(path, allow_pickle=False)
+            data = data[key]
+        pose = numeric_array(path, data, key)
     else:
-        pose = np.loadtxt(path, delimiter=None if path.suffix != ".csv" else ",")
+        text = read_text(path, "a pose file (.txt or .csv)", 64 << 20)
+        try:
+            pose = np.loadtxt(io.StringIO(text), delimiter=None if path.suffix != ".csv" else ",")
+        except ValueError as exc:
+            raise ValueError(f"--pose: {path} is not a table of numbers ({exc})") from None
     pose = np.atleast_2d(np.asarray(pose, dtype=np.float64))
     if pose.shape[-1] >= 72:  # a full pose: drop the root (and anything past SMPL's 24 joints)
         pose = pose[:, 3:72]

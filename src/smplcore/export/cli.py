@@ -1,5 +1,5 @@
 """``smplcore export``: a parameter set or a motion to a mesh (OBJ/PLY), a rigged animation (glTF
-binary) or skeleton motion (BVH). Registered by :mod:`smplcore.cli`.
+binary, FBX) or skeleton motion (BVH). Registered by :mod:`smplcore.cli`.
 
 Examples::
 
@@ -9,6 +9,7 @@ Examples::
     smplcore export walk.npz -o walk.glb --texture skin.png    # UVs (open model, SMPL-X) + a texture
     smplcore export walk.npz -o walk.glb --model-path models/ --model-type smplh
     smplcore export params.npz -o body.glb                # one parameter set (betas, body_pose, ...)
+    smplcore export walk.npz -o walk.fbx --up-axis z --root-bone root   # FBX for Unreal (centimetres)
     smplcore export walk.npz -o walk.usdz                 # rigged USDZ; also .usd/.smpl (see export/cli_usd.py)
 """
 
@@ -24,7 +25,7 @@ import numpy as np
 
 from smplcore.cli_options import model_file_options
 
-FORMATS = (".obj", ".ply", ".glb", ".bvh")
+FORMATS = (".obj", ".ply", ".glb", ".bvh", ".fbx")
 _HAND_BLOCKS = ("left_hand_pose", "right_hand_pose", "hand_pose")
 
 
@@ -46,7 +47,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         type=Path,
         required=True,
         metavar="OUT",
-        help="output file: .obj, .ply (one posed frame), .glb (rigged + animated) or .bvh",
+        help="output file: .obj, .ply (one posed frame), .glb or .fbx (rigged + animated) or .bvh",
+    )
+    parser.add_argument(
+        "--format",
+        default=None,
+        choices=[f.lstrip(".") for f in FORMATS],
+        help="output format (default: from the suffix of OUT; OUT without a suffix gets this one)",
     )
     parser.add_argument("--model-path", default=None, help="model file or folder (default: the open model)")
     parser.add_argument(
@@ -97,19 +104,19 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--colors",
         choices=("none", "weights"),
         default="none",
-        help=".obj/.ply/.glb: per-vertex colours from the skinning weights (default: none)",
+        help=".obj/.ply/.glb/.fbx: per-vertex colours from the skinning weights (default: none)",
     )
     parser.add_argument(
         "--texture",
         default=None,
         metavar="FILE",
-        help=".obj/.glb: image drawn through the model's UV map (the open model, SMPL-X; the UVs are written "
+        help=".obj/.glb/.fbx: image drawn through the model's UV map (the open model, SMPL-X; the UVs are written "
         "whenever the model has them), or 'uv-grid' for a generated grid that shows the mapping",
     )
     parser.add_argument(
         "--morph-targets",
         action="store_true",
-        help=".glb: add shape (and expression) components as morph targets",
+        help=".glb/.fbx: add shape (and expression) components as morph targets (FBX: blend shapes)",
     )
     parser.add_argument(
         "--influences",
@@ -125,6 +132,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help=".bvh: length unit multiplier; 1 = metres (default), 100 = centimetres",
     )
     parser.add_argument("--euler", default="ZYX", help=".bvh: rotation channel order (default: ZYX)")
+    from smplcore.export.fbx.cli import add_fbx_options
+
+    add_fbx_options(parser)
     hands = parser.add_mutually_exclusive_group()
     hands.add_argument(
         "--flat-hand-mean",
@@ -234,12 +244,17 @@ def run(args: argparse.Namespace) -> int:
     if interchange is not None:
         return run_interchange(args, interchange)
     out = Path(args.output)
+    fmt = getattr(args, "format", None)
+    if fmt and not out.suffix:
+        out = out.with_suffix(f".{fmt}")
+    elif fmt and out.suffix.lower() != f".{fmt}":
+        raise ValueError(f"--format {fmt}: the output {str(out)!r} has another suffix; use .{fmt} or drop --format")
     suffix = out.suffix.lower()
     if suffix not in FORMATS:
         expected = ", ".join(FORMATS + (".usd", ".usda", ".usdc", ".usdz", ".smpl"))
         raise ValueError(f"-o/--output: unsupported suffix {out.suffix!r}; expected one of {expected}")
-    if args.texture is not None and suffix not in (".obj", ".glb"):
-        raise ValueError(f"--texture: textures are written to .obj and .glb files, not {out.suffix!r}")
+    if args.texture is not None and suffix not in (".obj", ".glb", ".fbx"):
+        raise ValueError(f"--texture: textures are written to .obj, .glb and .fbx files, not {out.suffix!r}")
     source = load_input(args.input, fps=args.fps)  # the rate of a motion that states none
     frames = _frame_slice(args.frames)
     if frames is not None:
@@ -273,7 +288,7 @@ def run(args: argparse.Namespace) -> int:
             report_warnings: list[str] = []
         else:
             count = source.num_frames if isinstance(source, Motion) else _count(source)
-            passes = 2 + (suffix == ".glb" and bool(model.has_pose_correctives))
+            passes = 2 + (suffix in (".glb", ".fbx") and bool(model.has_pose_correctives))
             bar = _progress_bar(count * passes, args.no_progress or count < 100)
             update = None if bar is None else bar.update
             try:
@@ -290,6 +305,10 @@ def run(args: argparse.Namespace) -> int:
                         texture=args.texture,
                         progress=update,
                     )
+                elif suffix == ".fbx":
+                    from smplcore.export.fbx.cli import write_fbx
+
+                    report = write_fbx(args, out, model, anim, progress=update)
                 else:
                     report = save_bvh(out, model, anim, scale=args.bvh_scale, euler=args.euler, progress=update)
             finally:

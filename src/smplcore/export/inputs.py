@@ -4,7 +4,6 @@ package's one AMASS reader (:func:`smplcore.motion.motion_from_arrays`)."""
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -22,6 +21,10 @@ def _text(value: Any) -> str:
     return item.decode("utf-8", "replace") if isinstance(item, bytes) else str(item)
 
 
+def _is_text(value: Any) -> bool:
+    return isinstance(value, (str, bytes)) or (isinstance(value, np.ndarray) and value.dtype.kind in "SU")
+
+
 def load_input(path: str | Path, *, fps: float | None = None) -> Any:
     """Read an export input file: an AMASS-style motion ``.npz`` (has ``poses``) or a ``.smpl`` file
     (:mod:`smplcore.export.smplfile`) as a :class:`~smplcore.motion.Motion`, or a parameter set (``.npz`` or
@@ -30,29 +33,39 @@ def load_input(path: str | Path, *, fps: float | None = None) -> Any:
 
     ``fps`` is the frame rate of a motion that states none (see :func:`_motion_input`); a motion
     without a frame rate and without ``fps`` is refused."""
+    from smplcore.io import numeric_array, read_json, read_npz
     from smplcore.motion import load_motion
 
     path = Path(path)
-    if not path.exists():
+    if not path.exists() and not path.is_symlink():
         raise FileNotFoundError(f"{path}: no such file")
     suffix = path.suffix.lower()
     if suffix == ".json":
-        with path.open(encoding="utf-8") as fh:
-            raw = json.load(fh)
+        raw = read_json(path, "a parameter set or motion (.json)")
         if not isinstance(raw, dict):
             raise ValueError(f"{path}: expected a JSON object of parameter arrays")
         if "poses" in raw:
-            return _motion_input(raw, str(path), fps=fps)
-        return {k: np.asarray(v, dtype=np.float64) if k not in ("gender", "model_type") else v for k, v in raw.items()}
+            try:
+                return _motion_input(raw, str(path), fps=fps)
+            except ModelFileError:
+                raise
+            except (TypeError, ValueError) as exc:  # text or ragged lists where numbers are expected
+                raise ModelFileError(path, f"expected arrays of numbers ({exc})") from None
+        try:
+            return {
+                k: np.asarray(v, dtype=np.float64) if k not in ("gender", "model_type") else v for k, v in raw.items()
+            }
+        except (TypeError, ValueError) as exc:
+            raise ModelFileError(path, f"expected arrays of numbers ({exc})") from None
     if suffix == ".smpl":
         from smplcore.export.smplfile import read_smpl
 
         return read_smpl(path).to_motion(default_fps=fps or 30.0)
     if suffix == ".npz":
-        with np.load(path, allow_pickle=False) as data:
-            keys = set(data.files)
-            if "poses" not in keys:
-                return {k: (data[k] if data[k].dtype.kind in "fiub" else _text(data[k])) for k in keys}
+        data = read_npz(path, "a parameter set or motion (.npz)")
+        keys = set(data)
+        if "poses" not in keys:
+            return {k: (_text(data[k]) if _is_text(data[k]) else numeric_array(path, data[k], k)) for k in keys}
         _require_frame_rate(keys, path, fps)
         return load_motion(path, default_fps=fps)
     raise ValueError(

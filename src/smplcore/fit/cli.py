@@ -9,7 +9,11 @@ outputs are kept unless ``--overwrite``), ``--workers`` processes, bad inputs re
 from __future__ import annotations
 
 import argparse
+import contextlib
+import errno
 import json
+import math
+import signal
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -80,6 +84,17 @@ def _extrinsics(text: str) -> tuple[float, ...]:
     return tuple(float(v) for v in matrix.reshape(-1))
 
 
+def _positive(text: str) -> float:
+    """A finite number > 0 (``--fps nan`` would write a file the readers refuse)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
+    return value
+
+
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     """Register ``smplcore fit``."""
     p = subparsers.add_parser(
@@ -122,7 +137,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     p.add_argument("--vposer", default=None, metavar="PATH", help="2D: VPoser v2 pose prior (V02_05/ or its .ckpt)")
     p.add_argument("--gmm", default=None, metavar="PATH", help="2D: SMPLify's gmm_08.pkl pose prior")
-    p.add_argument("--fps", type=float, default=30.0, help="frame rate written to the output (default 30)")
+    p.add_argument("--fps", type=_positive, default=30.0, help="frame rate written to the output (default 30)")
     p.add_argument("--person", type=int, default=0, help="OpenPose: which person of each frame (default 0)")
     p.add_argument("--smoothness", type=float, default=1e-3, help="sequences: temporal smoothness weight")
     p.add_argument(
@@ -210,7 +225,7 @@ def _settings(args: argparse.Namespace):
         value = getattr(args, option)
         if value is not None and not Path(value).exists():
             raise ValueError(f"--{option}: {value}: no such file or folder")
-    return FitSettings(
+    settings = FitSettings(
         model_type=args.model_type,
         model_path=args.model_path,
         gender=args.gender,
@@ -229,6 +244,11 @@ def _settings(args: argparse.Namespace):
         extrinsics=args.extrinsics,
         max_iter=args.max_iter,
     )
+    if settings.vposer or settings.gmm:  # read once here: a bad prior file is one clear error, not one per input
+        from smplcore.fit.inputs import _priors
+
+        _priors(settings)
+    return settings
 
 
 def _is_single(path: Path) -> bool:
@@ -270,16 +290,28 @@ def fit_one(source: str, output: str, settings: Any) -> dict[str, Any]:
         arrays: dict[str, Any] = outputs  # np.savez's keywords (its stub reserves allow_pickle)
         atomic_write(Path(output), lambda fh: np.savez(fh, **arrays))
         entry.update(status="done", **summary)
+    except OSError as exc:  # writing the output (inputs are read through smplcore's readers: ModelFileError)
+        entry["reason"] = f"cannot write {output}: {exc.strerror or exc}"
+        entry["fatal"] = exc.errno in _FATAL_WRITE
     except Exception as exc:  # noqa: BLE001 -- one bad input is reported, never fatal to the batch
-        entry["reason"] = str(exc) if isinstance(exc, (ValueError, OSError)) else f"{type(exc).__name__}: {exc}"
+        entry["reason"] = str(exc) if isinstance(exc, ValueError) else f"{type(exc).__name__}: {exc}"
     entry["seconds"] = round(time.perf_counter() - start, 3)
     return entry
 
 
 def _init_worker() -> None:
-    from threadpoolctl import threadpool_limits
-
+    """A worker: one BLAS thread when threadpoolctl is installed (optional), and Ctrl-C left to the parent,
+    which stops the batch (a worker's own KeyboardInterrupt would only print a traceback)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return
     threadpool_limits(1)
+
+
+# Errors writing an output that every later output would meet too: the batch stops (finished outputs are kept).
+_FATAL_WRITE = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.ENOTDIR, errno.EFBIG}
 
 
 def _bar(total: int, disable: bool):
@@ -295,16 +327,24 @@ def run(args: argparse.Namespace) -> int:
     source, out = Path(args.input), Path(args.output)
     if not source.exists():
         raise FileNotFoundError(f"{source}: no such file or folder")
+    if not source.is_dir():  # a FIFO, device or socket: refused without opening it
+        from smplcore.io import open_input
+
+        open_input(source, "an input file (.json, .npy, .npz) or folder")[0].close()
     _check_camera(args, source)
     if _is_single(source):
         if out.suffix.lower() != ".npz":
             raise ValueError(f"-o/--output: expected a .npz file for one input, got {out}")
+        if out.is_dir():
+            raise ValueError(f"-o/--output: {out} is a folder; one input writes one .npz file")
+        _output_folder(out.parent)
         tasks = [(source, out)]
         manifest = None
     else:
         inputs = find_inputs(source)
         if not inputs:
             raise ValueError(f"{source}: no inputs (.json, .npy, .npz files or OpenPose folders)")
+        _output_folder(out)
         tasks = [(p, out / (p.stem if p.is_file() else p.name)) for p in inputs]
         tasks = [(p, o.with_name(o.name + ".npz")) for p, o in tasks]
         manifest = out / MANIFEST
@@ -319,21 +359,72 @@ def run(args: argparse.Namespace) -> int:
         if args.ray is not None and todo:
             _run_ray(todo, settings, args.ray, args.workers, entries, bar)
         elif args.workers > 1 and len(todo) > 1:
-            with ProcessPoolExecutor(args.workers, initializer=_init_worker) as pool:
-                futures = [pool.submit(fit_one, s, d, settings) for s, d in todo]
-                for fut in as_completed(futures):
-                    entries.append(fut.result())
-                    if bar is not None:
-                        bar.update()
+            _run_pool(todo, settings, args.workers, entries, bar)
         else:
             for s, d in todo:
                 entries.append(fit_one(s, d, settings))
                 if bar is not None:
                     bar.update()
+                if entries[-1].get("fatal"):
+                    break
+    except KeyboardInterrupt:
+        if bar is not None:
+            bar.close()
+            bar = None
+        done = sum(e["status"] == "done" for e in entries)
+        print(f"smplcore fit: interrupted; {done} output(s) written in this run are kept "
+              "(run the same command again to fit the rest)", file=sys.stderr)  # fmt: skip
+        _report(entries, manifest, quiet=True)
+        return 130
     finally:
         if bar is not None:
             bar.close()
-    return _report(entries, manifest, args.max_iter)
+    return _report(entries, manifest, max_iter=args.max_iter)
+
+
+def _output_folder(folder: Path) -> None:
+    """Make ``folder`` (for the outputs) or raise ValueError saying why it cannot be."""
+    if folder.exists() and not folder.is_dir():
+        raise ValueError(f"-o/--output: {folder} is a file; a folder of inputs needs an output folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"-o/--output: cannot make the folder {folder}: {exc.strerror or exc}") from None
+
+
+def _run_pool(todo: list, settings: Any, workers: int, entries: list, bar: Any) -> None:
+    """The fits in ``workers`` processes; a worker that dies is one skipped input, a fatal write error (full or
+    read-only disk) stops the batch; outputs already written are kept."""
+    pool = ProcessPoolExecutor(workers, initializer=_init_worker)
+    pending = {pool.submit(fit_one, s, d, settings): (s, d) for s, d in todo}
+    try:
+        for fut in as_completed(list(pending)):
+            source, output = pending.pop(fut)
+            try:
+                entries.append(fut.result())
+            except Exception as exc:  # noqa: BLE001 -- a worker that died (BrokenProcessPool) loses one input
+                entries.append({"input": source, "output": output, "status": "skipped",
+                                "reason": f"the worker stopped: {type(exc).__name__}: {exc}"})  # fmt: skip
+            if bar is not None:
+                bar.update()
+            if entries[-1].get("fatal"):
+                break
+    finally:
+        if pending:  # stopped early (Ctrl-C, a full disk): running fits end now; their outputs were never renamed in
+            processes = list((getattr(pool, "_processes", None) or {}).values())
+            pool.shutdown(wait=False, cancel_futures=True)
+            for process in processes:
+                if process.is_alive():
+                    process.terminate()
+            for process in processes:
+                process.join(timeout=10)
+            _remove_partial({Path(d).parent for _, d in todo}, {p.pid for p in processes})
+            for source, output in pending.values():  # renamed into place before its result reached us
+                if Path(output).is_file():
+                    entries.append({"input": source, "output": output, "status": "done",
+                                    "note": "written just before the batch stopped"})  # fmt: skip
+        else:
+            pool.shutdown()
 
 
 def _run_ray(todo: list, settings: Any, address: str, workers: int, entries: list, bar: Any) -> None:
@@ -375,8 +466,23 @@ def _rows(count: int, entry: dict[str, Any]) -> str:
     return f"{count} { ({'frames': 'frame', 'bodies': 'body'}.get(unit, unit) if count == 1 else unit) }"
 
 
-def _report(entries: list[dict[str, Any]], manifest: Path | None, max_iter: int | None = None) -> int:
-    from smplcore.jobs import atomic_write
+def _remove_partial(folders: set[Path], pids: set[int | None]) -> None:
+    """Remove the temporary files of ended workers (their outputs were never renamed into place)."""
+    from smplcore.jobs import TMP_SUFFIX
+
+    for folder in folders:
+        for pid in pids:
+            for tmp in folder.glob(f".*.{pid}-*{TMP_SUFFIX}"):
+                with contextlib.suppress(OSError):
+                    tmp.unlink()
+
+
+def _report(
+    entries: list[dict[str, Any]], manifest: Path | None, quiet: bool = False, max_iter: int | None = None
+) -> int:
+    if quiet:  # after Ctrl-C: only the manifest of what was done
+        _write_manifest(entries, manifest)
+        return 130
 
     done = [e for e in entries if e["status"] == "done"]
     skipped = [e for e in entries if e["status"] == "skipped"]
@@ -384,6 +490,9 @@ def _report(entries: list[dict[str, Any]], manifest: Path | None, max_iter: int 
     for e in skipped:
         print(f"skipped {e['input']}: {e['reason']}", file=sys.stderr)
     for e in done:
+        if "frames" not in e:  # written just before the batch stopped: its summary never arrived
+            print(f"wrote {e['output']} ({e.get('note', 'no summary')})")
+            continue
         unit = e.get("error_unit", "")
         scale, shown = (1000.0, "mm") if unit == "m" else (1.0, unit)
         print(f"wrote {e['output']}: {_rows(e['frames'], e)}, mean error {e['mean_error'] * scale:.2f} {shown}")
@@ -406,7 +515,24 @@ def _report(entries: list[dict[str, Any]], manifest: Path | None, max_iter: int 
             print(f"  {e['input']}: {len(frames)} of {_rows(e['frames'], e)} {frames[:20]}{more}")
     print(f"{len(done)} fitted, {len(skipped)} skipped (bad input), {len(kept)} already done, "
           f"{len(lagging)} stopped at the iteration budget")  # fmt: skip
-    if manifest is not None:
-        text = json.dumps({"entries": entries}, indent=1).encode()
-        atomic_write(manifest, lambda fh: fh.write(text))
+    stopped = next((e for e in skipped if e.get("fatal")), None)
+    if stopped is not None:
+        print(f"smplcore fit: stopped: {stopped['reason']}; the outputs written are kept", file=sys.stderr)
+    if not _write_manifest(entries, manifest):
+        return 1
     return 1 if skipped else 0
+
+
+def _write_manifest(entries: list[dict[str, Any]], manifest: Path | None) -> bool:
+    """Write the manifest; False (with a message) when it cannot be written (the outputs stay)."""
+    from smplcore.jobs import atomic_write
+
+    if manifest is None:
+        return True
+    text = json.dumps({"entries": [{k: v for k, v in e.items() if k != "fatal"} for e in entries]}, indent=1)
+    try:
+        atomic_write(manifest, lambda fh: fh.write(text.encode()))
+    except OSError as exc:
+        print(f"smplcore fit: cannot write {manifest}: {exc.strerror or exc}", file=sys.stderr)
+        return False
+    return True

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -64,21 +65,17 @@ def _source_vertices(model: Any, params: dict[str, Any]) -> tuple[np.ndarray, np
 
 def read_deformation_transfer(path: str | Path, num_source: int, num_target: int) -> Correspondence:
     """The vertex map of an official deformation-transfer pickle (``mtx`` or ``matrix``), read safely."""
-    from smplcore.io import LoadBudget, safe_load
+    from smplcore.io import numeric_array, read_arrays
 
     path = Path(path)
-    if not path.is_file():
-        raise ModelFileError(path, "no such file")
-    with open(path, "rb") as fh:
-        try:
-            data = safe_load(fh, LoadBudget(path, path.stat().st_size, sparse_stays_sparse=True))
-        except Exception as exc:  # the allow-list refused it or the data is corrupt
-            raise ModelFileError(path, f"cannot be read safely: {exc}") from exc
-    if not isinstance(data, dict) or not ({"mtx", "matrix"} & set(data)):
+    data = read_arrays(path, "a deformation-transfer file (.pkl)", sparse_stays_sparse=True)
+    if not isinstance(data, Mapping) or not ({"mtx", "matrix"} & set(data)):
         raise ModelFileError(path, "expected a dict with a sparse 'mtx' (or 'matrix')", key="mtx")
     key = "mtx" if "mtx" in data else "matrix"
     mtx = data[key]
-    mtx = mtx.tocsr() if hasattr(mtx, "tocsr") else np.asarray(mtx)
+    mtx = mtx.tocsr() if hasattr(mtx, "tocsr") else numeric_array(path, mtx, key, kinds="biuf")
+    if mtx.ndim != 2:
+        raise ModelFileError(path, f"expected a 2-D matrix, found shape {mtx.shape}", key=key)
     rows, cols = mtx.shape
     if rows != num_target or cols not in (num_source, 2 * num_source):
         raise ModelFileError(
@@ -184,8 +181,14 @@ def correspondence(
     name = hashlib.sha256(_mesh_key(source) + _mesh_key(target)).hexdigest()[:24] + ".npz"
     path = folder / name
     if path.is_file():
-        with np.load(path, allow_pickle=False) as data:
-            return Correspondence(data["indices"], data["weights"], data["distance"], "templates (cached)")
+        from smplcore.io import numeric_array, read_npz
+
+        try:
+            data = read_npz(path, "a cached correspondence (.npz)")
+            indices, weights, distance = (numeric_array(path, data[k], k) for k in ("indices", "weights", "distance"))
+            return Correspondence(indices, weights, distance, "templates (cached)")
+        except (ModelFileError, KeyError):
+            pass  # a damaged cache entry: computed again and replaced
     corr = template_correspondence(source, target)
     try:
         folder.mkdir(parents=True, exist_ok=True)

@@ -18,7 +18,6 @@ origin; with ``extrinsics``, the world they are given in (nothing moved).
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -163,12 +162,18 @@ def _ground(model: Any, params: dict[str, np.ndarray], extrinsics: np.ndarray, r
 
 
 def _coco_image_sizes(path: Path) -> dict[Any, tuple[float, float]]:
-    with open(path, encoding="utf-8") as fh:
-        doc = json.load(fh)
+    from smplcore.io import read_json
+
+    doc = read_json(path, "a COCO keypoint file (.json)")
     sizes = {}
-    for image in doc.get("images", []) if isinstance(doc, dict) else []:
+    images = doc.get("images", []) if isinstance(doc, dict) else []
+    for image in images if isinstance(images, list) else []:
         if isinstance(image, dict) and image.get("width") and image.get("height"):
-            sizes[image.get("id")] = (float(image["width"]), float(image["height"]))
+            try:
+                size = (float(image["width"]), float(image["height"]))
+                sizes[image.get("id")] = size
+            except (TypeError, ValueError, OverflowError):
+                raise ModelFileError(path, f"image {image.get('id')!r}: width and height must be numbers") from None
     return sizes
 
 
@@ -248,7 +253,11 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
                 _ground(model, params, extrinsics, rows)
         betas = params["betas"].mean(0)
     elif kind == "joints":
-        joints = np.load(path, allow_pickle=False)
+        from smplcore.io import numeric_array, read_arrays
+
+        joints = numeric_array(path, read_arrays(path, "a joints file (.npy)"), kinds="iuf")
+        if joints.ndim != 3 or joints.shape[-1] != 3:
+            raise ModelFileError(path, f"expected joints of shape (T, J, 3), found {joints.shape}")
         names: Sequence[str] | None = settings.joint_names
         weights = None
         if names is None and settings.convention is not None:

@@ -27,6 +27,7 @@ with 21 body joints (SMPL+H, SMPL-X) the first 63 values are used (the Gaussians
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -139,7 +140,7 @@ class GMMPrior:
         covars = np.asarray(covars, np.float64)
         weights = np.asarray(weights, np.float64).reshape(-1)
         c = len(weights)
-        if means.ndim != 2 or means.shape[0] != c or covars.shape != (c, means.shape[1], means.shape[1]):
+        if c == 0 or means.ndim != 2 or means.shape[0] != c or covars.shape != (c, means.shape[1], means.shape[1]):
             raise ModelFileError(
                 source,
                 f"expected means (C, D), covars (C, D, D), weights (C,); got {means.shape}, {covars.shape}, "
@@ -158,20 +159,18 @@ class GMMPrior:
     def load(cls, path: str | os.PathLike[str]) -> GMMPrior:
         """Read ``gmm_08.pkl`` (a pickled dict with ``means``, ``covars``, ``weights``) through smplcore's
         allow-list unpickler (nothing in the file is run)."""
-        from smplcore.io import safe_load
+        from smplcore.io import numeric_array, read_arrays
 
         path = Path(path)
-        if not path.is_file():
+        if not path.exists() and not path.is_symlink():
             raise ModelFileError(path, "no such file (SMPLify's gmm_08.pkl comes with SMPLify's download)")
-        with open(path, "rb") as fh:
-            try:
-                data = safe_load(fh)
-            except Exception as exc:  # refused by the allow-list, or damaged
-                raise ModelFileError(path, f"cannot be read safely: {exc}") from exc
-        missing = [k for k in ("means", "covars", "weights") if not isinstance(data, dict) or k not in data]
+        data = read_arrays(path, "a GMM pose prior (SMPLify's gmm_08.pkl)")
+        keys = ("means", "covars", "weights")
+        missing = [k for k in keys if not isinstance(data, Mapping) or k not in data]
         if missing:
             raise ModelFileError(path, f"expected a dict with means, covars and weights; missing {missing}")
-        return cls.from_arrays(data["means"], data["covars"], data["weights"], str(path))
+        means, covars, weights = (numeric_array(path, data[k], k, kinds="biuf") for k in keys)
+        return cls.from_arrays(means, covars, weights, str(path))
 
     @property
     def dim(self) -> int:

@@ -154,19 +154,23 @@ class VPoserPrior:
     def load(cls, path: str | os.PathLike[str]) -> VPoserPrior:
         """Read VPoser v2 from a Lightning ``.ckpt``, a state_dict ``.pt``/``.npz``, or the ``V02_05/`` folder
         (its newest ``snapshots/*.ckpt``). Nothing in the file is run; torch is not needed."""
-        from smplcore.io import load_torch_file, read_container
+        from smplcore.io import read_arrays, read_checkpoint
 
         file = _checkpoint_file(Path(path))
-        if file.suffix.lower() == ".npz":
-            content: Any = dict(read_container(file))
-        else:
-            content = load_torch_file(file)
+        what = "a VPoser v2 checkpoint (.ckpt, .pt or .npz)"
+        content = read_arrays(file, what) if file.suffix.lower() == ".npz" else read_checkpoint(file, what)
+        content = dict(content) if isinstance(content, Mapping) else content
         state = content.get("state_dict", content) if isinstance(content, dict) else None
         if not isinstance(state, dict) or not all(isinstance(k, str) for k in state):
             raise ModelFileError(
                 file, "expected a PyTorch-Lightning checkpoint with a 'state_dict', or a state_dict of VPoser v2"
             )
-        return cls.from_state_dict(state, str(file))
+        try:
+            return cls.from_state_dict(state, str(file))
+        except ModelFileError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - ragged lists, odd values: a file error
+            raise ModelFileError(file, f"unusable VPoser state_dict ({type(exc).__name__}: {exc})") from None
 
     # -- forward -------------------------------------------------------------------------------------
     def _pose(self, pose: Any) -> np.ndarray:
@@ -217,9 +221,11 @@ class VPoserPrior:
 
 def _checkpoint_file(path: Path) -> Path:
     """The checkpoint file of ``path``: itself, or a folder's (``snapshots/``'s) newest checkpoint."""
-    if path.is_file():
-        return path
+    if path.is_file() or (path.is_symlink() and not path.is_dir()):
+        return path  # (a dangling or looping link: the reader says which)
     if not path.is_dir():
+        if os.path.lexists(path):  # a FIFO, device or socket: refused by the reader without opening it
+            return path
         raise ModelFileError(path, "no such file or folder (VPoser v2 comes as V02_05.zip from the SMPL-X site)")
     for folder in (path / "snapshots", path):
         found = (

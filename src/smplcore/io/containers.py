@@ -28,8 +28,11 @@ _HEADER_DTYPE_KINDS = "biufcSU"
 _CHUNK = 16 << 20
 
 
-def open_regular(path: Path) -> tuple[BinaryIO, int]:
-    """Open ``path`` for reading if it is a regular file; return the file and its size."""
+def open_regular(path: Path, expected: str = "a model file") -> tuple[BinaryIO, int]:
+    """Open ``path`` for reading if it is a regular file; return the file and its size.
+
+    ``expected`` names what the file should be in messages. Nothing is opened unless ``os.stat`` shows a
+    regular file, and the open is non-blocking: a FIFO never makes it wait for a writer."""
     try:
         info = os.stat(path)
     except FileNotFoundError:
@@ -37,9 +40,9 @@ def open_regular(path: Path) -> tuple[BinaryIO, int]:
     except OSError as exc:
         raise ModelFileError(path, f"cannot read ({exc.strerror or exc})") from None
     if stat.S_ISDIR(info.st_mode):
-        raise ModelFileError(path, "is a directory, expected a model file")
+        raise ModelFileError(path, f"is a directory, expected {expected}")
     if not stat.S_ISREG(info.st_mode):
-        raise ModelFileError(path, f"is not a regular file ({_file_kind(info.st_mode)}), expected a model file")
+        raise ModelFileError(path, f"is not a regular file ({_file_kind(info.st_mode)}), expected {expected}")
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
     except OSError as exc:
@@ -47,7 +50,7 @@ def open_regular(path: Path) -> tuple[BinaryIO, int]:
     info = os.fstat(fd)
     if not stat.S_ISREG(info.st_mode):  # replaced between stat and open
         os.close(fd)
-        raise ModelFileError(path, f"is not a regular file ({_file_kind(info.st_mode)}), expected a model file")
+        raise ModelFileError(path, f"is not a regular file ({_file_kind(info.st_mode)}), expected {expected}")
     return os.fdopen(fd, "rb"), info.st_size
 
 

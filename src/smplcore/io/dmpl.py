@@ -7,12 +7,12 @@ like shape blend shapes (:func:`smplcore.create` / :class:`smplcore.BodyModel` w
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
 from smplcore.io.checks import Checker
-from smplcore.io.containers import read_container
 
 __all__ = ["load_dmpl"]
 
@@ -33,8 +33,13 @@ def load_dmpl(path: str | Path, num_vertices: int | None = None) -> np.ndarray:
         naming the file and the key: missing file or key, wrong shape (a vertex count that is not the
         model's), NaN or infinite values, or anything the safe loader refuses.
     """
+    from smplcore.errors import ModelFileError
+    from smplcore.io import read_arrays
+
     path = Path(path)
-    raw = read_container(path)
+    raw = read_arrays(path, "a DMPL file (dmpl.npz)")
+    if not isinstance(raw, Mapping):
+        raise ModelFileError(path, f"expected a dict of arrays with the key {DMPL_KEY!r}, found a {type(raw).__name__}")
 
     def convert(c: Checker) -> np.ndarray:
         value = np.asarray(c.get(DMPL_KEY))  # required: a missing key raises, naming the file's keys

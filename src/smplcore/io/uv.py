@@ -85,44 +85,46 @@ def load_uv_obj(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     ModelFileError
         when the file is missing, a face has no texture index, or an index is out of range.
     """
+    from smplcore.io import read_text
+
     path = Path(path)
-    if not path.is_file():
+    if not path.exists() and not path.is_symlink():
         raise ModelFileError(path, "no such UV file (expected a Wavefront .obj with 'vt' lines and 'f v/vt' faces)")
+    text = read_text(path, "a UV map (a Wavefront .obj with 'vt' lines and 'f v/vt' faces)", 64 << 20)
     uvs: list[list[float]] = []
     tri_v: list[tuple[int, int, int]] = []
     tri_t: list[tuple[int, int, int]] = []
     num_v = 0
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        for lineno, line in enumerate(fh, 1):
-            if line.startswith("v "):
-                num_v += 1
-            elif line.startswith("vt "):
-                parts = line.split()
+    for lineno, line in enumerate(text.splitlines(keepends=True), 1):
+        if line.startswith("v "):
+            num_v += 1
+        elif line.startswith("vt "):
+            parts = line.split()
+            try:
+                uvs.append([float(parts[1]), float(parts[2]) if len(parts) > 2 else 0.0])
+            except (IndexError, ValueError):
+                raise ModelFileError(path, f"line {lineno}: malformed 'vt' line {line.strip()!r}") from None
+        elif line.startswith("f "):
+            corners = line.split()[1:]
+            vs, ts = [], []
+            for corner in corners:
+                fields = corner.split("/")
+                if len(fields) < 2 or not fields[1]:
+                    raise ModelFileError(
+                        path, f"line {lineno}: face corner {corner!r} has no texture index (expected 'f v/vt ...')"
+                    )
                 try:
-                    uvs.append([float(parts[1]), float(parts[2]) if len(parts) > 2 else 0.0])
-                except (IndexError, ValueError):
-                    raise ModelFileError(path, f"line {lineno}: malformed 'vt' line {line.strip()!r}") from None
-            elif line.startswith("f "):
-                corners = line.split()[1:]
-                vs, ts = [], []
-                for corner in corners:
-                    fields = corner.split("/")
-                    if len(fields) < 2 or not fields[1]:
-                        raise ModelFileError(
-                            path, f"line {lineno}: face corner {corner!r} has no texture index (expected 'f v/vt ...')"
-                        )
-                    try:
-                        v, t = int(fields[0]), int(fields[1])
-                    except ValueError:
-                        raise ModelFileError(path, f"line {lineno}: malformed face {line.strip()!r}") from None
-                    # OBJ indices are 1-based; negative ones count back from the last element read
-                    vs.append(v - 1 if v > 0 else num_v + v)
-                    ts.append(t - 1 if t > 0 else len(uvs) + t)
-                if len(vs) < 3:
-                    raise ModelFileError(path, f"line {lineno}: a face needs at least 3 corners")
-                for i in range(1, len(vs) - 1):
-                    tri_v.append((vs[0], vs[i], vs[i + 1]))
-                    tri_t.append((ts[0], ts[i], ts[i + 1]))
+                    v, t = int(fields[0]), int(fields[1])
+                except ValueError:
+                    raise ModelFileError(path, f"line {lineno}: malformed face {line.strip()!r}") from None
+                # OBJ indices are 1-based; negative ones count back from the last element read
+                vs.append(v - 1 if v > 0 else num_v + v)
+                ts.append(t - 1 if t > 0 else len(uvs) + t)
+            if len(vs) < 3:
+                raise ModelFileError(path, f"line {lineno}: a face needs at least 3 corners")
+            for i in range(1, len(vs) - 1):
+                tri_v.append((vs[0], vs[i], vs[i + 1]))
+                tri_t.append((ts[0], ts[i], ts[i + 1]))
     if not uvs or not tri_t:
         raise ModelFileError(path, "holds no UV map (no 'vt' lines or no faces)")
     vt = np.asarray(uvs, dtype=np.float64)

@@ -9,7 +9,6 @@ naming the file and the field.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -59,13 +58,9 @@ def _convention_of(names: tuple[str, ...]) -> str | None:
 
 
 def _load_json(path: Path) -> Any:
-    try:
-        with open(path, encoding="utf-8") as fh:
-            return json.load(fh)
-    except FileNotFoundError:
-        raise ModelFileError(path, "no such file") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ModelFileError(path, f"not valid JSON ({exc})") from None
+    from smplcore.io import read_json
+
+    return read_json(path, "a keypoint file (.json)")
 
 
 def _triples(path: Path, field: str, value: Any, count: int | None) -> np.ndarray | None:

@@ -8,7 +8,6 @@ smplcore's allow-list unpickler, ``.npz`` as arrays (a dense matrix, or scipy's 
 
 from __future__ import annotations
 
-import pickle
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,10 +16,9 @@ from typing import Any
 import numpy as np
 
 from smplcore.errors import ModelFileError, ShapeError
+from smplcore.io import MAX_ARRAY_ELEMENTS
 from smplcore.keypoints.conventions import names as convention_names
 
-_NPY_MAGIC = b"\x93NUMPY"
-_ZIP_MAGIC = b"PK\x03\x04"
 _MATRIX_KEYS = ("J_regressor", "regressor", "matrix", "J_regressor_extra", "J_regressor_h36m", "weights")
 OPEN_REGRESSORS_PATH = Path(__file__).resolve().parents[1] / "data" / "open_regressors.npz"
 
@@ -176,57 +174,15 @@ class Regressor:
 
 
 def _read_matrix(path: Path, key: str | None) -> tuple[Any, tuple[str, ...] | None]:
-    if not path.exists():
-        raise ModelFileError(path, "no such file")
-    if path.is_dir():
-        raise ModelFileError(path, "is a directory, expected a regressor file (.npy, .npz or .pkl)")
-    with open(path, "rb") as fh:
-        head = fh.read(8)
-        fh.seek(0)
-        try:
-            if head.startswith(_NPY_MAGIC):
-                value = _read_npy(fh)
-            elif head.startswith(_ZIP_MAGIC):
-                from smplcore.io import read_container
+    from smplcore.io import read_arrays
 
-                value = read_container(path)
-            elif head[:1] == b"\x80" or head[:1] in (b"(", b"}"):
-                from smplcore.io import safe_load
-
-                value = safe_load(fh)
-            else:
-                raise ModelFileError(path, f"not a regressor file: expected .npy, .npz or .pkl data, found {head!r}")
-        except ModelFileError:
-            raise
-        except pickle.UnpicklingError as exc:
-            from smplcore.io import UnsafePickleError
-
-            if isinstance(exc, UnsafePickleError):
-                raise ModelFileError(path, f"refused to load: {exc}; nothing in the file was run") from None
-            raise ModelFileError(path, f"truncated or corrupt file ({exc})") from None
-        except (EOFError, ValueError, OSError, KeyError, TypeError, IndexError) as exc:
-            raise ModelFileError(path, f"truncated or corrupt file ({type(exc).__name__}: {exc})") from None
-    return _pick_matrix(path, value, key)
-
-
-def _read_npy(fh: Any) -> Any:
-    version = np.lib.format.read_magic(fh)
-    fh.seek(0)
-    if version not in ((1, 0), (2, 0), (3, 0)):
-        raise ValueError(f"unsupported .npy version {version}")
+    value = read_arrays(path, "a regressor file (.npy, .npz or .pkl)")
     try:
-        return np.load(fh, allow_pickle=False)
-    except ValueError:  # an object array: a pickle after the header, read through the allow-list
-        from smplcore.io import materialize, safe_load
-
-        fh.seek(0)
-        np.lib.format.read_magic(fh)
-        reader = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
-        reader(fh)
-        value = safe_load(fh)
-        if isinstance(value, np.ndarray) and value.dtype == object and value.shape == ():
-            value = materialize(value.item())  # the stand-ins inside an object array
-        return value
+        return _pick_matrix(path, value, key)
+    except ModelFileError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a forged sparse layout, odd names, ...: a file error
+        raise ModelFileError(path, f"unusable regressor ({type(exc).__name__}: {exc})", key=key) from None
 
 
 def _pick_matrix(path: Path, value: Any, key: str | None) -> tuple[Any, tuple[str, ...] | None]:
@@ -258,11 +214,17 @@ def _pick_matrix(path: Path, value: Any, key: str | None) -> tuple[Any, tuple[st
     else:
         matrix = value
     if not _is_sparse(matrix):
-        matrix = np.asarray(matrix)
+        from smplcore.io import numeric_array
+
+        matrix = numeric_array(path, matrix, key, kinds="biuf")
         if matrix.dtype.kind not in "fiu":
             raise ModelFileError(path, f"expected a numeric (K, V) matrix, found dtype {matrix.dtype}", key=key)
     if len(matrix.shape) != 2:
         raise ModelFileError(path, f"expected a (K, V) matrix, found shape {tuple(matrix.shape)}", key=key)
+    if int(matrix.shape[0]) * int(matrix.shape[1]) > MAX_ARRAY_ELEMENTS:
+        raise ModelFileError(
+            path, f"a ({matrix.shape[0]}, {matrix.shape[1]}) regressor is larger than any body model needs", key=key
+        )
     if _is_sparse(matrix):
         matrix = matrix.tocsr().astype(np.float64)
     else:

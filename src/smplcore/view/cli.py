@@ -138,7 +138,9 @@ def run_view(args: argparse.Namespace) -> int:
         )
     except MissingDependencyError as exc:
         return _missing("view", exc)
-    print(f"smplcore view: serving {_bodies(len(viewer.bodies))} at http://{args.host}:{viewer.port}/", flush=True)
+    url = viewer.url if args.host in ("127.0.0.1", "localhost") else viewer.url.replace("127.0.0.1", args.host)
+    print(f"smplcore view: serving {_bodies(len(viewer.bodies))} at {url}", flush=True)
+    print("  (open this address: it holds this session's token; other pages and web origins are refused)", flush=True)
     try:
         while True:
             time.sleep(3600)
@@ -200,6 +202,9 @@ def run_render(args: argparse.Namespace) -> int:
     except RuntimeError as exc:  # no offscreen OpenGL context: the message says how to fix it
         print(f"smplcore render: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # the video could not be written whole (VideoWriteError), or its folder made
+        print(f"smplcore render: error: {exc.strerror if isinstance(exc.strerror, str) else exc}", file=sys.stderr)
+        return 1
     finally:
         bar.close()
     print(report.summary())

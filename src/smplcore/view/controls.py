@@ -9,6 +9,7 @@ or its model changes.
 from __future__ import annotations
 
 import contextlib
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -35,7 +36,8 @@ class Controls:
         self.viewer = viewer
         self.gui = viewer.server.gui
         self.selected = 0
-        self._quiet = False
+        self._local = threading.local()  # "quiet" per thread: viser runs browsers' callbacks in many threads
+        self._edits = threading.RLock()
         self._per_body: list[Any] = []
         self.speed = 1.0
         gui = self.gui
@@ -55,8 +57,8 @@ class Controls:
                 self.play = gui.add_checkbox("play", initial_value=False)
                 self.frame = gui.add_slider("frame", min=0, max=viewer.num_frames - 1, step=1, initial_value=0)
                 self.speed_slider = gui.add_slider("speed", min=0.1, max=4.0, step=0.1, initial_value=1.0)
-            self.frame.on_update(self._quietly(lambda _: viewer.set_frame(int(self.frame.value))))
-            self.speed_slider.on_update(lambda _: setattr(self, "speed", float(self.speed_slider.value)))
+            self.frame.on_update(self._quietly(self._on_frame))
+            self.speed_slider.on_update(self._on_speed)
         with gui.add_folder("Display", order=_ORDER["display"]):
             self.skeleton = gui.add_checkbox("skeleton", initial_value=False)
             self.names = gui.add_checkbox("joint names", initial_value=False)
@@ -87,11 +89,17 @@ class Controls:
     @contextlib.contextmanager
     def _silent(self) -> Iterator[None]:
         """Set widgets from the bodies' state without their callbacks acting on it."""
-        self._quiet, before = True, self._quiet
+        before = self._quiet
+        self._local.quiet = True
         try:
             yield
         finally:
-            self._quiet = before
+            self._local.quiet = before
+
+    @property
+    def _quiet(self) -> bool:
+        """Whether this thread is setting widgets from the bodies' state (their callbacks must not act)."""
+        return bool(getattr(self._local, "quiet", False))
 
     def _quietly(self, func: Any) -> Any:
         def callback(event: Any) -> None:
@@ -164,16 +172,65 @@ class Controls:
             reset_pose = gui.add_button("reset pose")
         self.joint.on_update(lambda _: self._show_joint())
         for slider in self.rotation:
-            slider.on_update(self._quietly(lambda _: self._rotate()))
+            slider.on_update(self._quietly(self._rotate))
         reset_pose.on_click(lambda _: self._reset("pose"))
         self._show_joint()
 
     def _coefficient_setter(self, name: str, k: int, slider: Any) -> Any:
-        def update(_: Any) -> None:
-            getattr(self._body, name)[k] = float(slider.value)
-            self.viewer.refresh(self.selected)
+        def update(event: Any) -> None:
+            with self._edits:  # viser runs a browser's callbacks in a thread pool: one at a time here
+                values = getattr(self._body, name)
+                value = self._checked(slider, float(values[k]), -BETA_RANGE, BETA_RANGE)
+                if value is None:
+                    return
+                values[k] = value
+            self._refresh(event)
 
         return update
+
+    def _checked(self, slider: Any, last: float, lo: float, hi: float) -> float | None:
+        """The slider's value if it is a finite number, clamped to [lo, hi] (the slider is set to the clamped
+        value); None for NaN, inf or a non-number, the slider being put back to ``last`` (any client could send
+        one: it must not reach the bodies, which every client sees)."""
+        try:
+            value = float(slider.value)
+        except (TypeError, ValueError):
+            value = float("nan")
+        if not np.isfinite(value):
+            with self._silent():
+                with contextlib.suppress(TypeError, ValueError):
+                    if np.isfinite(float(slider.value)):  # a newer (valid) move came meanwhile: it stands
+                        return None
+                slider.value = last
+            return None
+        if not lo <= value <= hi:
+            value = min(max(value, lo), hi)
+            with self._silent():
+                slider.value = value
+        return value
+
+    def _refresh(self, event: Any) -> None:
+        """Re-pose the selected body: at once for a change made from Python (scripts see the result), through
+        the viewer's merged refresh requests for a change from a browser (bursts of slider moves)."""
+        if getattr(event, "client", None) is None:
+            self.viewer.refresh(self.selected)
+        else:
+            self.viewer.request_refresh(self.selected)
+
+    def _on_frame(self, event: Any) -> None:
+        assert self.frame is not None
+        with self._edits:
+            value = self._checked(self.frame, float(self.viewer.current_frame), 0, self.viewer.num_frames - 1)
+        if value is not None:
+            self.viewer.set_frame(int(round(value)), refresh=getattr(event, "client", None) is None)
+            if getattr(event, "client", None) is not None:
+                self.viewer.request_refresh()
+
+    def _on_speed(self, event: Any) -> None:
+        with self._edits:
+            value = self._checked(self.speed_slider, self.speed, 0.1, 4.0)
+            if value is not None:
+                self.speed = value
 
     def _reset(self, what: str) -> None:
         body = self._body
@@ -201,12 +258,16 @@ class Controls:
             for slider, value in zip(self.rotation, angles):
                 slider.value = float(np.round(value))
 
-    def _rotate(self) -> None:
+    def _rotate(self, event: Any = None) -> None:
         body = self._body
         j = body.joint_names.index(self.joint.value)
-        angles = [float(s.value) for s in self.rotation]
-        body.full_pose[j] = Rotation.from_euler("XYZ", angles, degrees=True).as_rotvec()
-        self.viewer.refresh(self.selected)
+        with self._edits:
+            current = Rotation.from_rotvec(body.full_pose[j].astype(np.float64)).as_euler("XYZ", degrees=True)
+            angles = [self._checked(s, float(np.round(c)), -180.0, 180.0) for s, c in zip(self.rotation, current)]
+            if any(a is None for a in angles):
+                return
+            body.full_pose[j] = Rotation.from_euler("XYZ", angles, degrees=True).as_rotvec()
+        self._refresh(event)
 
     def _on_body(self, _: Any) -> None:
         self.selected = [f"{i}: {b.label}" for i, b in enumerate(self.viewer.bodies)].index(self.body.value)

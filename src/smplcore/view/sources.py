@@ -9,6 +9,7 @@ given model by :meth:`BvhMotion.to_motion`, since its root channel holds absolut
 from __future__ import annotations
 
 import zipfile
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -116,10 +117,12 @@ def read_bvh(path: str | Path) -> BvhMotion:
     MissingDependencyError
         when bvhio is not installed.
     """
+    from smplcore.io import open_input
     from smplcore.view._deps import require
 
     bvhio = require("bvhio", "reading .bvh motions")
     path = Path(path)
+    open_input(path, "a BVH motion (.bvh)")[0].close()  # a FIFO or device is refused before bvhio opens it
     try:
         container = bvhio.readAsBvh(str(path))
     except Exception as exc:  # bvhio raises plain exceptions of many kinds on a malformed file
@@ -191,8 +194,11 @@ def _is_model_file(path: Path) -> bool:
         return True
     if path.suffix.lower() != ".npz" or not zipfile.is_zipfile(path):
         return False
-    with zipfile.ZipFile(path) as archive:
-        keys = {name[:-4] if name.endswith(".npy") else name for name in archive.namelist()}
+    try:
+        with zipfile.ZipFile(path) as archive:
+            keys = {name[:-4] if name.endswith(".npy") else name for name in archive.namelist()}
+    except (zipfile.BadZipFile, NotImplementedError, OSError, ValueError, EOFError) as exc:
+        raise ModelFileError(path, f"not a readable .npz archive ({type(exc).__name__}: {exc})") from None
     return bool(keys & _MODEL_KEYS) and "poses" not in keys
 
 
@@ -206,11 +212,14 @@ def load_source(path: str | Path) -> Source:
         naming the file.
     """
     from smplcore.export.animation import load_input
+    from smplcore.io import open_input
     from smplcore.motion import Motion
 
     path = Path(path)
-    if not path.exists():
+    if not path.exists() and not path.is_symlink():
         raise FileNotFoundError(f"{path}: no such file")
+    if not path.is_dir():  # a FIFO, device, socket or link loop is refused here, before anything opens it
+        open_input(path, "a motion, parameter set or model file")[0].close()
     if path.is_dir() or _is_model_file(path):
         return Source(label=path.name, model_path=path)
     if path.suffix.lower() == ".bvh":
@@ -230,22 +239,22 @@ def load_keypoints(path: str | Path) -> np.ndarray:
     ShapeError, ModelFileError
         naming the file and the shape found.
     """
+    from smplcore.io import numeric_array, read_arrays
+
     path = Path(path)
-    if not path.exists():
+    if not path.exists() and not path.is_symlink():
         raise FileNotFoundError(f"{path}: no such file")
-    try:
-        if path.suffix.lower() == ".npz":
-            with np.load(path, allow_pickle=False) as data:
-                key = next((k for k in _KEYPOINT_KEYS if k in data.files), None)
-                if key is None and len(data.files) == 1:
-                    key = data.files[0]
-                if key is None:
-                    raise ModelFileError(path, f"no keypoints; expected one of {_KEYPOINT_KEYS}, found {data.files}")
-                arr = np.asarray(data[key], dtype=np.float64)
-        else:
-            arr = np.asarray(np.load(path, allow_pickle=False), dtype=np.float64)
-    except (ValueError, OSError) as exc:
-        raise ModelFileError(path, f"cannot read keypoints ({exc})") from None
+    data = read_arrays(path, "a keypoint file (.npy or .npz)")
+    key = None
+    if isinstance(data, Mapping):
+        files = list(data)
+        key = next((k for k in _KEYPOINT_KEYS if k in files), None)
+        if key is None and len(files) == 1:
+            key = files[0]
+        if key is None:
+            raise ModelFileError(path, f"no keypoints; expected one of {_KEYPOINT_KEYS}, found {files}")
+        data = data[key]
+    arr = numeric_array(path, data, key).astype(np.float64)
     if arr.ndim not in (2, 3) or arr.shape[-1] not in (3, 4):
         raise ShapeError(f"{path}: expected keypoints of shape (K, 3) or (T, K, 3), got {arr.shape}")
     arr = arr[..., :3]

@@ -14,7 +14,11 @@ is handed to it as eight extra vertices that no face uses: they move the framing
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import gc
+import os
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -34,6 +38,11 @@ _BODY_COLOR = (0.87, 0.63, 0.5)
 _KEYPOINT_COLOR = (0.1, 0.65, 0.25)
 # Per-frame palettes: a GIF is encoded frame by frame, nothing is buffered for a global palette.
 _GIF_FILTER = "split[a][b];[a]palettegen=stats_mode=single[p];[b][p]paletteuse=new=1"
+
+
+class VideoWriteError(OSError):
+    """The video could not be written whole (a full disk, a read-only folder, ffmpeg failing); nothing is left
+    at the output path. The message names the file, the frames expected and the frames that decode."""
 
 
 @dataclass(frozen=True)
@@ -133,6 +142,12 @@ def render_video(
         imageio-ffmpeg is not installed.
     RuntimeError
         no offscreen OpenGL context (the message says how to fix it).
+    VideoWriteError
+        the video could not be written whole: what ffmpeg wrote is decoded back and must hold every frame
+        (a full disk left GIFs short and MP4s undecodable); nothing is left at ``output`` then.
+
+    The video is written under a temporary name beside ``output`` and renamed into place once its frames
+    decode back.
     """
     from smplcore.motion import Motion
     from smplcore.render import CAMERAS, render_mesh
@@ -178,7 +193,13 @@ def render_video(
     if on_start is not None:
         on_start(count)
     boxes = _camera_boxes(body, frame_of, batch, targets, camera, out_fps)
-    out.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise VideoWriteError(exc.errno, f"{out.parent}: cannot make the folder ({exc.strerror or exc})") from None
+    if out.is_dir():
+        raise ValueError(f"output: {out} is a folder, expected a {suffix} file to write")
+    partial = out.with_name(f".{out.stem}.{os.getpid()}.partial{suffix}")  # the suffix tells ffmpeg the format
     options: dict[str, Any] = {"macro_block_size": 2, "ffmpeg_log_level": "error"}
     if suffix == ".gif":
         options.update(codec="gif", pix_fmt_out="pal8", output_params=["-filter_complex", _GIF_FILTER])
@@ -191,8 +212,9 @@ def render_video(
     gc.freeze()
     writer = None
     faces = body.faces
+    written = False
     try:
-        writer = ffmpeg.write_frames(str(out), (width, height), fps=out_fps, **options)
+        writer = ffmpeg.write_frames(str(partial), (width, height), fps=out_fps, **options)
         writer.send(None)
         for start in range(0, count, batch):
             frames = frame_of[start : start + batch]
@@ -209,16 +231,70 @@ def render_video(
                         "alpha": 0.6,
                     }
                 image = render_mesh(padded, faces, width=width, height=height, camera=view, color=_BODY_COLOR, **extra)
-                writer.send(np.ascontiguousarray(image))
+                try:
+                    writer.send(np.ascontiguousarray(image))
+                except OSError as exc:  # ffmpeg stopped (it printed why: no space left, ...)
+                    raise _write_failed(out, partial, k, count, str(exc).splitlines()[0]) from None
             if progress is not None:
                 progress(len(frames))
+        writer.close()
+        writer = None
+        decoded = decoded_frames(partial, suffix)
+        if decoded != count:
+            raise _write_failed(out, partial, decoded, count, "the file does not decode whole")
+        try:
+            os.replace(partial, out)
+        except OSError as exc:
+            raise _write_failed(out, partial, decoded, count, exc.strerror or str(exc)) from None
+        written = True
     finally:
         if writer is not None:
             writer.close()
+        if not written:
+            with contextlib.suppress(OSError):
+                partial.unlink()
         if not was_frozen:
             gc.unfreeze()
     return VideoReport(
         path=out, frames=count, fps=out_fps, width=width, height=height, seconds=time.perf_counter() - start_time
+    )
+
+
+def decoded_frames(path: str | Path, suffix: str | None = None) -> int:
+    """How many frames of the video at ``path`` decode (0 when it does not decode at all): a GIF's frames
+    read with Pillow, an MP4's video packets counted by ffmpeg."""
+    path = Path(path)
+    suffix = (suffix or path.suffix).lower()
+    if suffix == ".gif":
+        from PIL import Image
+
+        count = 0
+        try:
+            with Image.open(path) as img:
+                while True:
+                    img.load()
+                    count += 1
+                    img.seek(img.tell() + 1)
+        except EOFError:
+            return count
+        except Exception:  # noqa: BLE001 - truncated or corrupt (Pillow raises IndexError, OSError, ...): frames so far
+            return count
+    ffmpeg = require("imageio_ffmpeg", "reading videos back")
+    try:
+        return int(ffmpeg.count_frames_and_secs(str(path))[0])
+    except (RuntimeError, OSError, ValueError):
+        return 0
+
+
+def _write_failed(out: Path, partial: Path, frames: int, count: int, why: str) -> VideoWriteError:
+    try:
+        free = f"; {shutil.disk_usage(out.parent).free:,} bytes free on its disk"
+    except OSError:
+        free = ""
+    return VideoWriteError(
+        errno.EIO,
+        f"{out}: the video could not be written whole ({why}): {frames} of {count} frames decode back{free}. "
+        "Nothing was written there",
     )
 
 

@@ -44,6 +44,9 @@ class Viewer:
     models : ready :class:`smplcore.BodyModel`\\ s per source (used instead of building one).
     lighting : ``"studio"`` (viser's environment map and shadows) or ``"simple"`` (lights without shadows
         or environment map: much faster where the browser renders WebGL in software, e.g. headless).
+    token : the session token a browser must present (see :mod:`smplcore.view.access`): True (default) makes
+        a random one, a string is used as given, False asks for none (web pages of a foreign origin are
+        refused either way). :attr:`url` is the address to open.
     """
 
     def __init__(
@@ -60,7 +63,9 @@ class Viewer:
         models: list[Any] | None = None,
         lighting: str = "studio",
         verbose: bool = False,
+        token: bool | str = True,
     ) -> None:
+        from smplcore.view.access import SessionGate
         from smplcore.view.sources import load_source
 
         viser = require("viser", "the viewer")
@@ -81,8 +86,14 @@ class Viewer:
             self.genders.append(self._gender_for(src))
         self.keypoints = None if keypoints is None else _keypoints(keypoints)
         # The server starts once every input has loaded: a bad file leaves no server behind.
+        self.gate = SessionGate(host=host) if token is True else SessionGate(host=host, token=token or None)
         with _quiet_stdout(not verbose):  # viser prints a banner; a library does not print
             self.server = viser.ViserServer(host=host, port=8080 if port is None else int(port), verbose=verbose)
+        try:
+            self.gate.install(self.server)  # before any mesh is added: nothing reaches an unchecked client
+        except RuntimeError:
+            self.server.stop()
+            raise
         self.server.scene.set_up_direction("+y")
         if lighting == "simple":
             self.server.scene.configure_environment_map(None)
@@ -97,8 +108,12 @@ class Viewer:
         self._frame_camera()
         self.controls = Controls(self)
         self._stop = threading.Event()
+        self._pending: set[int | None] = set()
+        self._wake = threading.Event()
         self._player = threading.Thread(target=self._play_loop, name="smplcore-view-player", daemon=True)
         self._player.start()
+        self._refresher = threading.Thread(target=self._refresh_loop, name="smplcore-view-refresh", daemon=True)
+        self._refresher.start()
 
     # ----------------------------------------------------------------------------------------------
     # models
@@ -245,9 +260,10 @@ class Viewer:
             cell_size=0.25,
         )
 
-    def refresh(self, index: int | None = None) -> None:
-        """Re-pose body ``index`` (all with None) and send its mesh (and skeleton, names, keypoints when shown)."""
-        indices = range(len(self.bodies)) if index is None else [index]
+    def refresh(self, index: int | list[int] | None = None) -> None:
+        """Re-pose body ``index`` (a list of them; all with None) and send its mesh (and skeleton, names,
+        keypoints when shown)."""
+        indices = range(len(self.bodies)) if index is None else ([index] if isinstance(index, int) else index)
         with self._lock:
             for i in indices:
                 start = time.perf_counter()
@@ -264,6 +280,26 @@ class Viewer:
                     if "keypoints" in nodes and (kp := self.keypoints) is not None:
                         nodes["keypoints"].points = kp[min(body.frame, len(kp) - 1)].astype(np.float32)
                 self.timings.append(1e3 * (time.perf_counter() - start))
+
+    def request_refresh(self, index: int | None = None) -> None:
+        """Refresh body ``index`` (all with None) soon, in the viewer's refresh thread. Requests made while a
+        refresh runs are merged: a burst of slider moves costs one refresh with the latest values, not one
+        per move, and never queues work that would delay the others or Ctrl-C."""
+        self._pending.add(index)
+        self._wake.set()
+
+    def _refresh_loop(self) -> None:
+        while not self._stop.is_set():
+            if not self._wake.wait(timeout=0.2):
+                continue
+            self._wake.clear()
+            pending, self._pending = self._pending, set()
+            try:
+                self.refresh(None if None in pending else sorted(i for i in pending if i is not None))
+            except Exception as exc:  # noqa: BLE001 - a failed refresh must not end the thread (shown once)
+                from smplcore.errors import warn
+
+                warn(f"viewer: a refresh failed ({type(exc).__name__}: {exc})")
 
     def set_overlays(self, skeleton: bool | None = None, names: bool | None = None) -> None:
         """Show or hide the skeleton (bones and joint dots) and the joint names of every body."""
@@ -293,15 +329,22 @@ class Viewer:
         rates = [b.track.fps for b in self.bodies if b.track is not None]
         return rates[0] if rates else 30.0
 
-    def set_frame(self, frame: int) -> None:
-        """Show timeline frame ``frame`` on every body (each track at its own frame rate, held at its end)."""
+    @property
+    def current_frame(self) -> int:
+        """The timeline frame shown (the first body's)."""
+        return int(self.bodies[0].frame) if self.bodies else 0
+
+    def set_frame(self, frame: int, refresh: bool = True) -> None:
+        """Show timeline frame ``frame`` on every body (each track at its own frame rate, held at its end);
+        ``refresh=False`` sets the bodies' state only (then :meth:`request_refresh` sends it)."""
         with self._lock:
             for body in self.bodies:
                 if body.track is not None:
                     body.set_frame(round(frame * body.track.fps / self.fps))
                 else:
                     body.frame = frame
-            self.refresh()
+            if refresh:
+                self.refresh()
 
     def _play_loop(self) -> None:
         last = time.perf_counter()
@@ -352,12 +395,15 @@ class Viewer:
 
     @property
     def url(self) -> str:
-        return f"http://127.0.0.1:{self.port}/"
+        """The address to open in a browser (with the session token, unless the viewer was made without)."""
+        return self.gate.url(self.port)
 
     def close(self) -> None:
-        """Stop the player and the server."""
+        """Stop the player, the refresh thread and the server."""
         self._stop.set()
+        self._wake.set()
         self._player.join(timeout=2.0)
+        self._refresher.join(timeout=2.0)
         with _quiet_stdout(True):
             self.server.stop()
 
