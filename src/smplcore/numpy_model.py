@@ -93,7 +93,10 @@ class BodyModel:
         known = set(SETUP_OPTIONS)
         for name in sorted(set(options) - known):
             warn_once("BodyModel", f"BodyModel: ignoring unknown keyword argument {name!r}", key=name)
-        self.dtype = np.dtype(dtype)
+        try:
+            self.dtype = np.dtype(dtype)
+        except TypeError as exc:
+            raise TypeError(f"dtype: expected float32 or float64, got {dtype!r}") from exc
         if self.dtype not in (np.float32, np.float64):
             raise ValueError(f"dtype: expected float32 or float64, got {self.dtype}")
         given = {k: v for k, v in options.items() if k in known}

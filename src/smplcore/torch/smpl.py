@@ -35,11 +35,23 @@ __all__ = ["SMPL", "VertexJointSelector"]
 
 
 class VertexJointSelector(nn.Module):
-    """Holds smplx's ``extra_joints_idxs`` buffer: the vertices appended to the joints."""
+    """smplx's ``vertex_joint_selector``: holds the ``extra_joints_idxs`` buffer (the vertices appended to the
+    joints) and appends them: ``selector(vertices, joints)`` is (B, J + n, 3)."""
+
+    extra_joints_idxs: torch.Tensor
 
     def __init__(self, ids: list[int]) -> None:
         super().__init__()
         self.register_buffer("extra_joints_idxs", torch.tensor(ids, dtype=torch.long))
+
+    def forward(self, vertices: torch.Tensor, joints: torch.Tensor) -> torch.Tensor:
+        """(B, J + n, 3): (B, J, 3) ``joints`` followed by the n selected vertices of (B, V, 3) ``vertices``."""
+        if vertices.ndim != 3 or joints.ndim != 3 or vertices.shape[0] != joints.shape[0]:
+            raise ShapeError(
+                f"vertices, joints: expected (B, V, 3) and (B, J, 3), got {tuple(vertices.shape)} and "
+                f"{tuple(joints.shape)}"
+            )
+        return torch.cat([joints, vertices.index_select(1, self.extra_joints_idxs)], dim=1)
 
 
 class SMPL(nn.Module):
@@ -124,6 +136,7 @@ class SMPL(nn.Module):
                 setup.num_pca_comps,
                 setup.flat_hand_mean,
             )
+            self._set_numpy_hand_components(data, int(setup_opts.get("num_pca_comps", SETUP_OPTIONS["num_pca_comps"])))
         if spec.landmarks:
             self.use_face_contour = setup.use_face_contour
         self.faces = np.asarray(data.faces).astype(data.faces_dtype)
@@ -143,12 +156,10 @@ class SMPL(nn.Module):
         def as_float(a: Any) -> torch.Tensor:
             return torch.tensor(np.asarray(a), dtype=dtype)
 
-        self.register_buffer("faces_tensor", torch.tensor(np.asarray(d.faces), dtype=torch.long))
+        # smplx's order of registration (named_buffers(), state_dict()): the SMPL arrays, the hands, then for
+        # FLAME the expression basis before the landmarks, for SMPL-X after them
         self.register_buffer("shapedirs", as_float(setup.shapedirs))
-        if self.SPEC.has_expression:
-            self.register_buffer("expr_dirs", as_float(setup.exprdirs))
-        if setup.dmpldirs is not None:  # dmpl_path= only (human_body_prior's name): smplx's state_dict otherwise
-            self.register_buffer("dmpldirs", as_float(setup.dmpldirs))
+        self.register_buffer("faces_tensor", torch.tensor(np.asarray(d.faces), dtype=torch.long))
         self.register_buffer("v_template", as_float(d.v_template))
         self.register_buffer("J_regressor", as_float(d.J_regressor))
         num_posedirs = 9 * (d.num_joints - 1)
@@ -160,6 +171,8 @@ class SMPL(nn.Module):
         self.register_buffer("posedirs", as_float(posedirs))
         self.register_buffer("parents", torch.tensor(np.asarray(d.parents), dtype=torch.long))
         self.register_buffer("lbs_weights", as_float(d.weights))
+        if setup.dmpldirs is not None:  # dmpl_path= only (human_body_prior's name): smplx's state_dict otherwise
+            self.register_buffer("dmpldirs", as_float(setup.dmpldirs))
         extra = (
             list(family_names.VERTEX_IDS_MANO.values())
             if self.SPEC.model_type == "mano"
@@ -172,6 +185,9 @@ class SMPL(nn.Module):
             self.register_buffer(self.hand_buffer(block, "mean"), as_float(mean))
         if setup.hand_means:
             self.register_buffer("pose_mean", as_float(setup.pose_mean))
+        expression_first = self.SPEC.has_expression and not self.SPEC.hand_blocks  # FLAME
+        if expression_first:
+            self.register_buffer("expr_dirs", as_float(setup.exprdirs))
         if self.SPEC.landmarks:
             self.register_buffer("lmk_faces_idx", torch.tensor(d.lmk_faces_idx, dtype=torch.long))
             self.register_buffer("lmk_bary_coords", as_float(d.lmk_bary_coords))
@@ -179,11 +195,24 @@ class SMPL(nn.Module):
                 self.register_buffer("dynamic_lmk_faces_idx", torch.tensor(d.dynamic_lmk_faces_idx, dtype=torch.long))
                 self.register_buffer("dynamic_lmk_bary_coords", as_float(d.dynamic_lmk_bary_coords))
                 self.register_buffer("neck_kin_chain", torch.as_tensor(setup.neck_chain, dtype=torch.long))
+        if self.SPEC.has_expression and not expression_first:
+            self.register_buffer("expr_dirs", as_float(setup.exprdirs))
         if setup.regressor is not None:  # joint_regressors: not smplx's, so not in the state_dict
             self.register_buffer(
                 "_regressor_ids", torch.as_tensor(setup.regressor.vertex_ids, dtype=torch.long), persistent=False
             )
             self.register_buffer("_regressor_weights", as_float(setup.regressor.weights), persistent=False)
+
+    def _set_numpy_hand_components(self, data: ModelData, num_pca_comps: int) -> None:
+        """smplx's ``np_left_hand_components`` / ``np_right_hand_components`` (``np_hand_components`` for MANO):
+        the file's first ``num_pca_comps`` PCA components of each hand, whether or not PCA is used."""
+        for block in self.SPEC.hand_blocks:
+            side = data.gender if block.hand == "self" else block.hand
+            comps = getattr(data, f"hands_components_{side}")
+            if comps is None:
+                continue
+            name = "np_hand_components" if block.hand == "self" else f"np_{side}_hand_components"
+            setattr(self, name, np.asarray(comps)[:num_pca_comps])
 
     @staticmethod
     def hand_buffer(block: str, kind: str) -> str:
@@ -253,18 +282,30 @@ class SMPL(nn.Module):
         return int(self.faces.shape[0])
 
     def extra_repr(self) -> str:
+        """smplx's lines: gender, joints, betas; then hand PCA, expression and face contour as its class has them."""
         lines = [
             f"Gender: {str(self.gender).upper()}",
             f"Number of joints: {self.J_regressor.shape[0]}",
             f"Betas: {self.num_betas}",
         ]
-        if self.SPEC.has_expression:
-            lines.append(f"Number of expression coefficients: {self.num_expression_coeffs}")
         if self.SPEC.hand_blocks:
             if self.use_pca:
                 lines.append(f"Number of PCA components: {self.num_pca_comps}")
             lines.append(f"Flat hand mean: {self.flat_hand_mean}")
+        if self.SPEC.has_expression:
+            lines.append(f"Number of Expression Coefficients: {self.num_expression_coeffs}")
+            if not self.SPEC.hand_blocks:  # FLAME
+                lines.append(f"Use face contour: {self.use_face_contour}")
         return "\n".join(lines)
+
+    def create_mean_pose(self, data_struct: Any = None, flat_hand_mean: bool = False) -> Any:
+        """The mean pose added to the full pose, as smplx returns it (``data_struct`` and ``flat_hand_mean``
+        are ignored, as in smplx: the hand means chosen at construction are used): None for models
+        without hands, a tensor for SMPL+H and MANO, a NumPy array for SMPL-X."""
+        if not self.SPEC.hand_blocks:
+            return None
+        mean = torch.as_tensor(self.setup.pose_mean, dtype=self.dtype)
+        return mean.numpy() if self.SPEC.model_type == "smplx" else mean
 
     @torch.no_grad()
     def reset_params(self, **params_dict: Any) -> None:
