@@ -316,7 +316,7 @@ def _from_motion(model: Any, motion: Any, notes: list[str], progress: Progress |
     source_names = _joint_names_of(motion.model_type)
     if not set(names) & set(source_names):
         raise ValueError(f"the {motion.model_type} motion shares no joints with the {model.model_type} model")
-    params = motion.model_params(model.model_type, names)
+    params = motion.model_params(model.model_type, names, model.num_betas)
     frames = motion.num_frames
     full = np.concatenate([np.asarray(params[b], np.float64).reshape(frames, -1) for b in model.pose_blocks], axis=1)
     full = full + model.rig.pose_mean  # zeros unless the hand mean is not flat

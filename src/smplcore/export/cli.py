@@ -166,7 +166,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         action="store_false",
         help="hand poses are relative to the model's mean hand pose (smplx's default)",
     )
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--no-progress", "--quiet", dest="no_progress", action="store_true", help="no progress bar")
     from smplcore.export.cli_usd import add_arguments  # USD / USDZ, .smpl, the Blender add-on npz
 
     add_arguments(parser)
@@ -294,6 +294,7 @@ def run(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         model = _build_model(args, source)
+        _warn_unused_dmpls(source, model, suffix)
         if model.skinning == "dqs" and suffix == ".glb":
             warnings.warn(
                 "--skinning dqs: glTF skins are linear blend skinning, so the .glb rig holds the LBS weights "
@@ -356,6 +357,19 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _warn_unused_dmpls(source: Any, model: Any, suffix: str) -> None:
+    """A motion's soft tissue (``dmpls``) is used only with ``--dmpl``: say so instead of dropping it silently."""
+    dmpls = source.get("dmpls") if isinstance(source, dict) else getattr(source, "dmpls", None)
+    used = int(getattr(model, "num_dmpls", 0)) > 0
+    if dmpls is None or used or suffix == ".bvh" or not np.any(np.asarray(dmpls)):
+        return
+    warnings.warn(
+        f"dmpls: the input has DMPL soft-tissue coefficients ({np.shape(dmpls)[-1]} per frame) that are not "
+        "used; add --dmpl FILE (AMASS's DMPL download, dmpls/<gender>/model.npz) to write the soft tissue",
+        stacklevel=2,
+    )
+
+
 def _count(params: dict[str, Any]) -> int:
     sizes = [
         np.asarray(v).shape[0]
@@ -374,7 +388,7 @@ def _write_mesh(
 
     if isinstance(source, Motion):
         total = source.num_frames
-        params = source.model_params(model.model_type, model.skeleton_joint_names)
+        params = source.model_params(model.model_type, model.skeleton_joint_names, model.num_betas)
         if model.num_dmpls and source.dmpls is not None:
             params["dmpls"] = fit_width("dmpls", np.asarray(source.dmpls), model.num_dmpls)
     else:

@@ -39,6 +39,22 @@ SETUP_OPTIONS: dict[str, Any] = {
     "skinning": "lbs",
 }
 
+
+def hand_options_from_file(data: ModelData, given: Any) -> dict[str, Any]:
+    """``use_pca`` / ``flat_hand_mean`` for a file without hand PCA and mean hand pose (AMASS's SMPL+H / SMPL-X
+    ``.npz``), when the caller gave neither: axis-angle hands (``use_pca=False``; smplx's default, True,
+    cannot be read from such a file) with a flat mean (its hand poses are absolute). Otherwise nothing: the
+    options given, or smplx's defaults, apply (``use_pca=True`` on such a file is still a clear error)."""
+    spec = get_spec(data.model_type)
+    if not spec.hand_blocks or spec.model_type == "mano" or "use_pca" in given or "flat_hand_mean" in given:
+        return {}
+    sides = ("left", "right")
+    if all(getattr(data, f"hands_components_{s}", None) is None and getattr(data, f"hands_mean_{s}", None) is None
+           for s in sides):  # fmt: skip
+        return {"use_pca": False, "flat_hand_mean": True}
+    return {}
+
+
 #: The skinning methods of the ``skinning`` option: linear blend and dual-quaternion skinning.
 SKINNING_METHODS = ("lbs", "dqs")
 

@@ -19,6 +19,7 @@ from smplcore.family import names as family_names
 from smplcore.family.specs import SMPL as SMPL_SPEC
 from smplcore.family.specs import FamilySpec
 from smplcore.frontend import SETUP_OPTIONS, ModelSetup, evaluate
+from smplcore.frontend.setup import hand_options_from_file
 from smplcore.io.model_data import ModelData
 from smplcore.model.rig import Rig, rig_from_setup
 from smplcore.torch.arrays import ModuleArrays
@@ -119,6 +120,7 @@ class SMPL(nn.Module):
             data = attach_uv(data, uv_path)
         if self.LAYER and "use_pca" not in setup_opts and not _has_hand_pca(data):
             setup_opts["use_pca"] = False  # a Layer never reads PCA hands; smplx still registers the bases
+        setup_opts.update(hand_options_from_file(data, setup_opts))  # AMASS's .npz: no hand PCA, no mean
         self.setup = setup = ModelSetup.build(data, owner=name, **setup_opts)
         self.kernel = check_kernel(kernel)
         self.skinning = setup.skinning  # "lbs" or "dqs" (the skinning option)
@@ -326,7 +328,11 @@ class SMPL(nn.Module):
         if betas.ndim == 1:
             betas = betas[None]
         if betas.shape[-1] > self.num_betas:
-            raise ShapeError(f"betas: expected shape (B, <={self.num_betas}), got {tuple(betas.shape)}")
+            raise ShapeError(
+                f"betas: expected shape (B, <={self.num_betas}), got {tuple(betas.shape)}; the model was made with "
+                f"num_betas={self.num_betas}: make it with num_betas={betas.shape[-1]} (e.g. "
+                f"smplcore.create(..., num_betas={betas.shape[-1]})) if its file holds that many"
+            )
         return reference.shape_blend(self.v_template, self.shapedirs[:, :, : betas.shape[-1]], betas)
 
     # -- forward -----------------------------------------------------------------------------------
