@@ -43,5 +43,6 @@ def model_cache():
     return get
 
 
-# every model of a parametrized test's round (tests/test_oracle.py: 8 models x 2 dtypes) stays cached
-_MODEL_CACHE_SIZE = 20
+# the models of one parametrized round (tests/test_oracle.py's torch test: 8 model files and options); an SMPL-X
+# model holds a few hundred MB, so the cache stays small
+_MODEL_CACHE_SIZE = 8

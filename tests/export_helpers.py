@@ -77,12 +77,18 @@ def without_correctives(model: smplcore.BodyModel, **options) -> smplcore.BodyMo
 # Khronos glTF validator
 
 
-NODE_PACKAGES = {"gltf-validator": "2.0.0-dev.3.10", "three": "0.170.0"}
+NODE_PACKAGES = {
+    "gltf-validator": "2.0.0-dev.3.10",
+    "three": "0.170.0",
+    "@pixiv/three-vrm": "3.5.5",
+    "@pixiv/three-vrm-animation": "3.5.5",
+}
 
 
 def node_package(name: str) -> tuple[str, Path]:
     """``(node executable, node_modules dir)`` with npm package ``name`` installed into ``VALIDATOR_DIR`` on
-    first use (the pinned version); skips when node or npm is absent."""
+    first use (the pinned version); skips when node or npm is absent. Every pinned package is installed in
+    one npm call: an ``npm install --no-save`` of one package removes the others it does not know of."""
     node, npm = shutil.which("node"), shutil.which("npm")
     if node is None or npm is None:
         pytest.skip(f"{name} (npm) needs node and npm, which are not installed")
@@ -98,7 +104,7 @@ def node_package(name: str) -> tuple[str, Path]:
                 "--no-save",
                 "--prefix",
                 str(VALIDATOR_DIR),
-                f"{name}@{NODE_PACKAGES[name]}",
+                *(f"{n}@{v}" for n, v in NODE_PACKAGES.items()),
             ],
             capture_output=True,
             text=True,
@@ -163,7 +169,12 @@ class GlbReader:
     def __init__(self, path: Path) -> None:
         import pygltflib
 
-        self.gltf = pygltflib.GLTF2().load(str(path))
+        path = Path(path)  # .vrm / .vrma are glb files under another suffix
+        self.gltf = (
+            pygltflib.GLTF2().load(str(path))
+            if path.suffix.lower() in (".glb", ".gltf")
+            else (pygltflib.GLTF2().load_binary(str(path)))
+        )
         self.blob = self.gltf.binary_blob()
 
     def array(self, index: int) -> np.ndarray:
@@ -196,6 +207,8 @@ class GlbReader:
         nodes = self.gltf.nodes
         trans = np.array([n.translation or [0.0, 0.0, 0.0] for n in nodes], dtype=np.float64)
         quat = np.array([n.rotation or [0.0, 0.0, 0.0, 1.0] for n in nodes], dtype=np.float64)
+        if not self.gltf.animations:  # e.g. a .vrm avatar: its rest pose
+            return trans, quat
         anim = self.gltf.animations[0]
         for ch in anim.channels:
             sampler = anim.samplers[ch.sampler]

@@ -171,10 +171,27 @@ def test_pca_without_components_is_a_clear_error(fake_models, monkeypatch):
     monkeypatch.setattr(setup, "_warned", set())  # the warning comes once per process: whatever ran before
     path = fake_models["official_smplh_amass_neutral_npz"]
     with pytest.raises(ModelFileError, match="use_pca=True needs.*pass use_pca=False"):
-        smplcore.create(path)
+        smplcore.create(path, use_pca=True)
     with pytest.warns(UserWarning, match="no mean hand pose"):
         model = smplcore.create(path, use_pca=False)
     assert model.num_betas == 10 and model.left_hand_pose.shape == (1, 45)
+
+
+def test_an_amass_smplh_npz_is_read_with_axis_angle_hands_by_default(fake_models):
+    """AMASS's SMPL+H .npz has neither hand PCA nor a mean hand pose: without use_pca / flat_hand_mean,
+    create() and BodyModel take the hands as axis-angle with a flat mean (as smplcore demo does), silently."""
+    path = fake_models["official_smplh_amass_neutral_npz"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        model = smplcore.create(path)
+        body = smplcore.BodyModel(path)
+    assert model.use_pca is False and model.flat_hand_mean is True and model.left_hand_pose.shape == (1, 45)
+    assert body.setup.use_pca is False and body.setup.flat_hand_mean is True
+    hands = {"left_hand_pose": torch.full((1, 45), 0.1), "right_hand_pose": torch.zeros(1, 45)}
+    explicit = smplcore.create(path, use_pca=False, flat_hand_mean=True)
+    torch.testing.assert_close(model(**hands).vertices, explicit(**hands).vertices)
+    with_pca = smplcore.create(fake_models["root"], model_type="smplh", gender="female", ext="npz")
+    assert with_pca.use_pca is True  # a file with hand PCA keeps smplx's default
 
 
 def test_dtype_and_device_moves(fake_models):

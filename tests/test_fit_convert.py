@@ -124,3 +124,37 @@ def test_a_full_size_smpl_to_smplx_map_reads_as_a_sparse_matrix(tmp_path, protoc
     corr = read_deformation_transfer(path, 6890, 10475)
     verts = rng.normal(size=(2, 6890, 3))
     np.testing.assert_allclose(corr.apply(verts), np.stack([mtx[:, :6890] @ v for v in verts]), atol=1e-12)
+
+
+def test_a_small_deformation_transfer_file_cannot_take_gigabytes(tmp_path):
+    """A 0.5 MB file whose one row holds 6,890 weights used to widen every row's table to 6,890 columns
+    (1.7 GB for 10,475 rows); each target vertex comes from a few source vertices, so wide rows are refused
+    and memory stays a small multiple of the file (measured in a subprocess)."""
+    import subprocess
+    import sys
+    import textwrap
+
+    rows = np.concatenate([np.zeros(6890, np.int64), np.arange(1, 10475)])
+    cols = np.concatenate([np.arange(6890), np.zeros(10474, np.int64)])
+    mtx = sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(10475, 13780))
+    path = tmp_path / "wide_deftrafo_setup.pkl"
+    with open(path, "wb") as fh:
+        pickle.dump({"mtx": mtx}, fh, protocol=2)
+    assert path.stat().st_size < 600_000
+    script = textwrap.dedent(
+        f"""
+        import resource
+        from smplcore.errors import ModelFileError
+        from smplcore.fit.convert import read_deformation_transfer
+        before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        try:
+            read_deformation_transfer({str(path)!r}, 6890, 10475)
+            print("read", end=" ")
+        except ModelFileError as exc:
+            print("refused" if "row 0" in str(exc) else "other", end=" ")
+        print((resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) // 1024)
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout.split()
+    assert out[0] == "refused"
+    assert int(out[1]) < 100  # MB above the interpreter with smplcore imported

@@ -11,6 +11,7 @@ import numpy as np
 from smplcore.engine.kernels.select import check_kernel
 from smplcore.frontend import SETUP_OPTIONS, ModelSetup, SetupArrays, evaluate, warn_once
 from smplcore.frontend.inputs import rows
+from smplcore.frontend.setup import hand_options_from_file
 from smplcore.io.locate import read_model
 from smplcore.io.model_data import ModelData
 from smplcore.model.rig import Rig, rig_from_setup
@@ -92,10 +93,15 @@ class BodyModel:
         known = set(SETUP_OPTIONS)
         for name in sorted(set(options) - known):
             warn_once("BodyModel", f"BodyModel: ignoring unknown keyword argument {name!r}", key=name)
-        self.dtype = np.dtype(dtype)
+        try:
+            self.dtype = np.dtype(dtype)
+        except TypeError as exc:
+            raise TypeError(f"dtype: expected float32 or float64, got {dtype!r}") from exc
         if self.dtype not in (np.float32, np.float64):
             raise ValueError(f"dtype: expected float32 or float64, got {self.dtype}")
-        self.setup = ModelSetup.build(data, owner="BodyModel", **{k: v for k, v in options.items() if k in known})
+        given = {k: v for k, v in options.items() if k in known}
+        given.update(hand_options_from_file(data, given))  # AMASS's .npz: no hand PCA, no mean hand pose
+        self.setup = ModelSetup.build(data, owner="BodyModel", **given)
         self.kernel = check_kernel(kernel)
         self.skinning = self.setup.skinning
         self.check_finite, self.check_rotations = bool(check_finite), bool(check_rotations)
@@ -129,6 +135,12 @@ class BodyModel:
     @property
     def model_type(self) -> str:
         return self.setup.spec.model_type
+
+    @property
+    def gender(self) -> str:
+        """The model's gender, normalised: ``"neutral"``, ``"male"``, ``"female"`` (MANO: ``"right"`` /
+        ``"left"``), as the file says (else as asked for)."""
+        return self.setup.data.gender
 
     @property
     def num_betas(self) -> int:

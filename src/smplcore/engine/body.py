@@ -85,6 +85,10 @@ class BodyArrays:
         ``[1, coeffs] @ joint_basis`` is exact for rest joints: the regressor is linear.
     weights_t : (J, V) skinning weights, transposed, rows in depth order (like the transforms).
     tree : the kinematic tree.
+    weights_sum_to_one : every vertex's weights sum to 1 within a few units of rounding of the arrays'
+        dtype. Only then is a translation folded into the skinning transforms (``Σ w (A v + t) = Σ w A v +
+        (Σ w) t``); else it is added after skinning. Float32-stored weights sum to 1 within ~1e-7: exact
+        in float32, not in float64, where folding moved a body 1,000 km away by 13 cm.
     """
 
     blend_basis: Any
@@ -92,6 +96,7 @@ class BodyArrays:
     joint_basis: Any
     weights_t: Any
     tree: KinematicTree
+    weights_sum_to_one: bool = False
     _derived: dict = field(default_factory=dict, repr=False)
 
     @classmethod
@@ -126,12 +131,14 @@ class BodyArrays:
         offsets = joints - joints[:, parent] * (np.asarray(tree.parents) >= 0)[None, :, None]
         order = list(tree.order)
         joint_basis = np.concatenate([joints[:, order], offsets[:, order]], axis=1).reshape(1 + num_coeffs, -1)
+        weights_t = convert(np.ascontiguousarray(np.asarray(weights).T[order]))
         return cls(
             blend_basis=_stacked(parts, 3 * num_verts, convert),
             num_coeffs=num_coeffs,
             joint_basis=convert(joint_basis),
-            weights_t=convert(np.ascontiguousarray(np.asarray(weights).T[order])),
+            weights_t=weights_t,
             tree=tree,
+            weights_sum_to_one=sums_to_one(weights, weights_t.dtype),
         )
 
     @property
@@ -184,7 +191,10 @@ class BodyArrays:
 
     def map(self, fn: Callable[[Any], Any]) -> BodyArrays:
         """The same arrays with ``fn`` applied to each (e.g. a dtype or device change)."""
-        return BodyArrays(fn(self.blend_basis), self.num_coeffs, fn(self.joint_basis), fn(self.weights_t), self.tree)
+        weights_t = fn(self.weights_t)
+        host = weights_t.detach().cpu().numpy() if is_torch(weights_t) else np.asarray(weights_t)
+        exact = sums_to_one(host.T, weights_t.dtype)
+        return BodyArrays(fn(self.blend_basis), self.num_coeffs, fn(self.joint_basis), weights_t, self.tree, exact)
 
 
 def _with_one(coeffs: Any) -> Any:
@@ -235,6 +245,22 @@ def pose_skeleton(coeffs: Any, rotmats: Any, joint_basis: Any, tree: KinematicTr
     return (world_pos if idx["inverse"] is None else world_pos[:, idx["inverse"]]), transforms
 
 
+def sums_to_one(weights: np.ndarray, dtype: Any) -> bool:
+    """Whether every row of (V, J) ``weights`` sums to 1 within 4 units of rounding of ``dtype`` (a NumPy or
+    torch float dtype), summed in float64."""
+    eps = _eps(dtype)
+    sums = np.asarray(weights, dtype=np.float64).sum(axis=1)
+    return bool(sums.size == 0 or np.abs(sums - 1).max() <= 4 * eps)
+
+
+def _eps(dtype: Any) -> float:
+    if isinstance(dtype, np.dtype) or isinstance(dtype, type):
+        return float(np.finfo(dtype).eps)
+    import torch
+
+    return float(torch.finfo(dtype).eps)
+
+
 def rest_joints(coeffs: Any, arrays: BodyArrays) -> Any:
     """(B, J, 3) rest-pose joints for (B, K) shape coefficients (no mesh is built)."""
     joints = _depth_ordered_joints(coeffs, arrays.joint_basis, arrays.tree)[0]
@@ -261,7 +287,8 @@ def forward(
     rotmats : (B, J, 3, 3) local joint rotations.
     arrays : the model.
     vertices : build the mesh (False: joints only).
-    translation : (B, 3) added to the vertices (not to the joints or transforms), or None.
+    translation : (B, 3) added to the vertices (not to the joints or transforms), or None; folded into the
+        skinning only where that is exact (see :attr:`BodyArrays.weights_sum_to_one`).
     kernel : ``"blocked"`` (no autograd graph) or ``"autograd"`` (torch).
     skinning : ``"lbs"`` or ``"dqs"`` (dual-quaternion skinning, :mod:`smplcore.engine.kernels.dqs`).
     host_skeleton : the plan's choice (:class:`smplcore.engine.kernels.select.Plan`): pose the skeleton in NumPy
@@ -284,17 +311,21 @@ def forward(
     if not vertices:
         return None, posed_joints, transforms
     feats = blend_features(coeffs, rotmats, arrays)
+    # dual quaternions are normalised after blending: folding is exact whatever the weights sum to
+    fold = skinning == "dqs" or arrays.weights_sum_to_one
     verts = _skin_from_basis(
         feats,
         transforms,
         arrays.blend_basis,
         arrays.weights_t,
         arrays.vertex_blocks,
-        translation,
+        translation if fold else None,
         kernel,
         arrays.packed_blend,
         (arrays.dqs_blocks, arrays.tree) if skinning == "dqs" else None,
     )
+    if translation is not None and not fold:
+        verts = verts + translation[:, None]
     return verts, posed_joints, transforms
 
 

@@ -165,6 +165,8 @@ class ExportReport:
     and mean displacement over all vertices and frames, and how many vertices lost weight.
     ``pose_corrective_max`` is the largest vertex displacement of the model's pose correctives over
     the exported frames (None for models without them) -- a rig cannot reproduce it.
+    ``engine``, ``unit_scale`` and ``ground_lift`` (metres, before scaling) describe a glTF written for a
+    game engine (:func:`smplcore.export.save_glb` with ``engine=``); the distances above stay in metres.
     """
 
     path: Path
@@ -183,13 +185,17 @@ class ExportReport:
     pose_corrective_max: float | None = None
     morph_targets: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    engine: str | None = None
+    unit_scale: float = 1.0
+    ground_lift: float | None = None
 
     def summary(self) -> str:
         """A few human-readable lines."""
         size = self.file_size
         human = f"{size / 1e6:.2f} MB" if size >= 1e6 else f"{size / 1e3:.1f} kB"
+        what = f"{self.num_frames} frame(s) at {self.fps:g} fps" if self.num_frames else "the rest pose"
         lines = [
-            f"wrote {self.path} ({self.format}, {human}): {self.num_frames} frame(s) at {self.fps:g} fps, "
+            f"wrote {self.path} ({self.format}, {human}): {what}, "
             f"{self.num_joints} joints" + (f", {self.num_vertices} vertices" if self.num_vertices else "")
         ]
         if self.top4_max_error is not None and self.top4_mean_error is not None:
@@ -199,6 +205,11 @@ class ExportReport:
                 f"{self.top4_vertices_affected} vertices truncated (max dropped weight "
                 f"{self.top4_max_dropped_weight:.4f}); vertex error vs full skinning: max "
                 f"{self.top4_max_error * 1000:.3f} mm, mean {self.top4_mean_error * 1000:.4f} mm"
+            )
+        if self.engine is not None:
+            lines.append(
+                f"engine: {self.engine} (root bone 'root', lengths x{self.unit_scale:g}, lifted "
+                f"{(self.ground_lift or 0.0) * 1000:+.1f} mm so the lowest vertex touches y = 0)"
             )
         if self.morph_targets:
             lines.append(
@@ -305,7 +316,7 @@ def _from_motion(model: Any, motion: Any, notes: list[str], progress: Progress |
     source_names = _joint_names_of(motion.model_type)
     if not set(names) & set(source_names):
         raise ValueError(f"the {motion.model_type} motion shares no joints with the {model.model_type} model")
-    params = motion.model_params(model.model_type, names)
+    params = motion.model_params(model.model_type, names, model.num_betas)
     frames = motion.num_frames
     full = np.concatenate([np.asarray(params[b], np.float64).reshape(frames, -1) for b in model.pose_blocks], axis=1)
     full = full + model.rig.pose_mean  # zeros unless the hand mean is not flat

@@ -9,6 +9,9 @@ Examples::
     smplcore export walk.npz -o walk.glb --texture skin.png    # UVs (open model, SMPL-X) + a texture
     smplcore export walk.npz -o walk.glb --model-path models/ --model-type smplh
     smplcore export params.npz -o body.glb                # one parameter set (betas, body_pose, ...)
+    smplcore export walk.npz -o walk.glb --engine unreal  # root bone, centimetres, feet on the ground
+    smplcore export walk.npz -o avatar.vrm                # VRM 1.0 avatar (T-pose) of the motion's body
+    smplcore export walk.npz -o walk.vrma                 # VRM animation clip any VRM avatar plays
     smplcore export walk.npz -o walk.fbx --up-axis z --root-bone root   # FBX for Unreal (centimetres)
     smplcore export walk.npz -o walk.usdz                 # rigged USDZ; also .usd/.smpl (see export/cli_usd.py)
 """
@@ -25,7 +28,7 @@ import numpy as np
 
 from smplcore.cli_options import model_file_options
 
-FORMATS = (".obj", ".ply", ".glb", ".bvh", ".fbx")
+FORMATS = (".obj", ".ply", ".glb", ".bvh", ".fbx", ".vrm", ".vrma")
 _HAND_BLOCKS = ("left_hand_pose", "right_hand_pose", "hand_pose")
 
 
@@ -47,7 +50,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         type=Path,
         required=True,
         metavar="OUT",
-        help="output file: .obj, .ply (one posed frame), .glb or .fbx (rigged + animated) or .bvh",
+        help="output file: .obj, .ply (one posed frame), .glb or .fbx (rigged + animated), .bvh, .vrm (VRM 1.0 "
+        "avatar) or .vrma (VRM animation)",
     )
     parser.add_argument(
         "--format",
@@ -110,7 +114,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--texture",
         default=None,
         metavar="FILE",
-        help=".obj/.glb/.fbx: image drawn through the model's UV map (the open model, SMPL-X; the UVs are written "
+        help=".obj/.glb/.fbx/.vrm: image drawn through the model's UV map (the open model, SMPL-X; the UVs are written "
         "whenever the model has them), or 'uv-grid' for a generated grid that shows the mapping",
     )
     parser.add_argument(
@@ -124,6 +128,19 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         choices=(4, 8),
         default=4,
         help=".glb: skinning weights kept per vertex (default: 4, what every viewer reads)",
+    )
+    parser.add_argument(
+        "--engine",
+        choices=("unreal", "unity"),
+        default=None,
+        help=".glb: game-engine conventions (a root bone, Unreal in centimetres, feet on the ground, 4 "
+        "influences, morph weights every frame); default: the exact export",
+    )
+    parser.add_argument(
+        "--unit-scale",
+        type=float,
+        default=None,
+        help=".glb with --engine: lengths multiplier (default: 100 for unreal, 1 for unity)",
     )
     parser.add_argument(
         "--bvh-scale",
@@ -149,7 +166,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         action="store_false",
         help="hand poses are relative to the model's mean hand pose (smplx's default)",
     )
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--no-progress", "--quiet", dest="no_progress", action="store_true", help="no progress bar")
     from smplcore.export.cli_usd import add_arguments  # USD / USDZ, .smpl, the Blender add-on npz
 
     add_arguments(parser)
@@ -253,8 +270,12 @@ def run(args: argparse.Namespace) -> int:
     if suffix not in FORMATS:
         expected = ", ".join(FORMATS + (".usd", ".usda", ".usdc", ".usdz", ".smpl"))
         raise ValueError(f"-o/--output: unsupported suffix {out.suffix!r}; expected one of {expected}")
-    if args.texture is not None and suffix not in (".obj", ".glb", ".fbx"):
-        raise ValueError(f"--texture: textures are written to .obj, .glb and .fbx files, not {out.suffix!r}")
+    if (args.engine is not None or args.unit_scale is not None) and suffix != ".glb":
+        raise ValueError(f"--engine/--unit-scale: engine conventions apply to .glb files, not {out.suffix!r}")
+    if args.texture is not None and suffix not in (".obj", ".glb", ".fbx", ".vrm"):
+        raise ValueError(
+            f"--texture: textures are written to .obj, .glb and .fbx files (and .vrm avatars), not {out.suffix!r}"
+        )
     source = load_input(args.input, fps=args.fps)  # the rate of a motion that states none
     frames = _frame_slice(args.frames)
     if frames is not None:
@@ -273,6 +294,7 @@ def run(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         model = _build_model(args, source)
+        _warn_unused_dmpls(source, model, suffix)
         if model.skinning == "dqs" and suffix == ".glb":
             warnings.warn(
                 "--skinning dqs: glTF skins are linear blend skinning, so the .glb rig holds the LBS weights "
@@ -287,7 +309,9 @@ def run(args: argparse.Namespace) -> int:
             report_warnings: list[str] = []
         else:
             count = source.num_frames if isinstance(source, Motion) else _count(source)
-            passes = 2 + (suffix in (".glb", ".fbx") and bool(model.has_pose_correctives))
+            passes = (
+                2 + (suffix in (".glb", ".fbx") and bool(model.has_pose_correctives)) - (suffix in (".vrm", ".vrma"))
+            )
             bar = _progress_bar(count * passes, args.no_progress or count < 100)
             update = None if bar is None else bar.update
             try:
@@ -303,6 +327,16 @@ def run(args: argparse.Namespace) -> int:
                         vertex_colors=colors,
                         texture=args.texture,
                         progress=update,
+                        engine=args.engine,
+                        unit_scale=args.unit_scale,
+                    )
+                elif suffix in (".vrm", ".vrma"):
+                    from smplcore.export.vrm import save_vrm, save_vrma
+
+                    report = (
+                        save_vrm(out, model, anim, texture=args.texture)
+                        if suffix == ".vrm"
+                        else save_vrma(out, model, anim)
                     )
                 elif suffix == ".fbx":
                     from smplcore.export.fbx.cli import write_fbx
@@ -323,6 +357,19 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _warn_unused_dmpls(source: Any, model: Any, suffix: str) -> None:
+    """A motion's soft tissue (``dmpls``) is used only with ``--dmpl``: say so instead of dropping it silently."""
+    dmpls = source.get("dmpls") if isinstance(source, dict) else getattr(source, "dmpls", None)
+    used = int(getattr(model, "num_dmpls", 0)) > 0
+    if dmpls is None or used or suffix == ".bvh" or not np.any(np.asarray(dmpls)):
+        return
+    warnings.warn(
+        f"dmpls: the input has DMPL soft-tissue coefficients ({np.shape(dmpls)[-1]} per frame) that are not "
+        "used; add --dmpl FILE (AMASS's DMPL download, dmpls/<gender>/model.npz) to write the soft tissue",
+        stacklevel=2,
+    )
+
+
 def _count(params: dict[str, Any]) -> int:
     sizes = [
         np.asarray(v).shape[0]
@@ -341,7 +388,7 @@ def _write_mesh(
 
     if isinstance(source, Motion):
         total = source.num_frames
-        params = source.model_params(model.model_type, model.skeleton_joint_names)
+        params = source.model_params(model.model_type, model.skeleton_joint_names, model.num_betas)
         if model.num_dmpls and source.dmpls is not None:
             params["dmpls"] = fit_width("dmpls", np.asarray(source.dmpls), model.num_dmpls)
     else:

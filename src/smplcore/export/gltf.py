@@ -23,6 +23,13 @@ The file holds one scene with
 * DMPL soft tissue (a model with ``dmpl_path``, an input with ``dmpls``): always morph targets
   ``dmpl_0`` ..., their weights animated with the per-frame coefficients.
 
+``engine="unreal"`` or ``"unity"`` writes the same body the way game-engine importers want it, beside the
+exact export above (the default, unchanged): a ``root`` bone at the origin above the pelvis (the skin's
+first joint, no vertex weight), lengths multiplied by ``unit_scale`` (Unreal: 100, centimetres; Unity: 1,
+metres), the whole motion lifted so its lowest vertex over all frames touches y = 0 (feet on the ground),
+4 normalised influences per vertex (the report gives the largest dropped weight and the vertex error),
+and a morph-target weight channel keyed every frame whenever there are morph targets.
+
 glTF skinning then reproduces the model's linear blend skinning without pose correctives: exactly
 (to float32) with all weights kept, and within the error :class:`ExportReport` gives for the top-4
 truncation.
@@ -115,6 +122,8 @@ def save_glb(
     texture: TextureInput | None = None,
     name: str | None = None,
     progress: Progress | None = None,
+    engine: str | None = None,
+    unit_scale: float | None = None,
 ) -> ExportReport:
     """Write ``source`` on ``model`` as a rigged, animated glTF 2.0 binary.
 
@@ -140,6 +149,9 @@ def save_glb(
     name : name of the animation (default: the input file's stem, or ``"motion"``).
     progress : called with numbers of frames processed (two passes: preparing, measuring the skin error;
         a third for models with pose correctives).
+    engine : ``"unreal"`` or ``"unity"``: the game-engine conventions of the module docs (root bone, unit
+        scale, feet on the ground, 4 influences, morph weights every frame); default None, the exact export.
+    unit_scale : lengths multiplier with ``engine`` (default: 100 for Unreal, centimetres; 1 for Unity).
 
     Returns
     -------
@@ -152,6 +164,15 @@ def save_glb(
 
     if influences not in (4, 8):
         raise ValueError(f"influences: expected 4 or 8, got {influences!r}")
+    if engine not in (None, "unreal", "unity"):
+        raise ValueError(f"engine: expected 'unreal', 'unity' or None, got {engine!r}")
+    if engine is not None and influences != 4:
+        raise ValueError(f"influences: engines take 4 influences per vertex, got {influences} with engine={engine!r}")
+    if unit_scale is not None and engine is None:
+        raise ValueError("unit_scale: only with engine='unreal' or 'unity' (the exact export is in metres)")
+    scale = float(unit_scale if unit_scale is not None else (100.0 if engine == "unreal" else 1.0))
+    if not (np.isfinite(scale) and scale > 0):
+        raise ValueError(f"unit_scale: expected a positive number, got {unit_scale!r}")
     anim = source if isinstance(source, Animation) else prepare_animation(model, source, fps=fps, progress=progress)
     if fps is not None and isinstance(source, Animation):
         anim = dataclasses.replace(anim, fps=float(fps))
@@ -185,9 +206,12 @@ def save_glb(
     gltf = pygltflib.GLTF2()
     gltf.asset = pygltflib.Asset(version="2.0", generator=f"smplcore {_version()} (pygltflib)")
     build = BufferBuilder(gltf)
+    lift = np.zeros(3)
+    if engine is not None:
+        lift[1] = -_lowest_point(anim)
 
     # Skeleton: node j is joint j; the mesh node comes after the joints.
-    offsets = anim.offsets
+    offsets = (anim.offsets + np.where(np.arange(num_joints)[:, None] == 0, lift, 0.0)) * scale
     for j, joint_name in enumerate(anim.joint_names):
         gltf.nodes.append(
             pygltflib.Node(
@@ -201,7 +225,7 @@ def save_glb(
     # Mesh (split along the UV seams when there is a UV map: `ids` picks each written vertex's model vertex).
     ids = np.arange(num_verts) if split is None else split.vertex_ids
     faces = np.asarray(anim.faces) if split is None else split.faces
-    verts = anim.rest_vertices[ids].astype(np.float32)
+    verts = ((anim.rest_vertices[ids] + lift) * scale).astype(np.float32)
     attributes: dict[str, int] = {
         "POSITION": build.accessor(verts, _FLOAT, target=_ARRAY_BUFFER, bounds=True, name="positions"),
         "NORMAL": build.accessor(
@@ -214,8 +238,10 @@ def save_glb(
     if split is not None:  # glTF's UV origin is the top-left corner: v flipped
         texcoord = np.c_[split.uv[:, 0], 1.0 - split.uv[:, 1]]
         attributes["TEXCOORD_0"] = build.accessor(texcoord, _FLOAT, target=_ARRAY_BUFFER, name="texcoords")
-    joint_type = _UBYTE if num_joints <= 256 else _USHORT
+    root_bone = engine is not None  # skin joint 0 is the root bone, joint j is skin joint j + 1
+    joint_type = _UBYTE if num_joints + root_bone <= 256 else _USHORT
     joints_idx, values = joints_idx[ids], values[ids]
+    joints_idx = np.where(values > 0, joints_idx + root_bone, 0)  # unused slots: joint 0, weight 0
     w32 = _float32_weights(values)
     for s in range(influences // 4):
         cols = slice(4 * s, 4 * s + 4)
@@ -247,7 +273,7 @@ def save_glb(
             targets.append(
                 {
                     "POSITION": build.accessor(
-                        shape_dirs[ids, :, k], _FLOAT, target=_ARRAY_BUFFER, bounds=True, name=f"beta_{k}"
+                        shape_dirs[ids, :, k] * scale, _FLOAT, target=_ARRAY_BUFFER, bounds=True, name=f"beta_{k}"
                     )
                 }
             )
@@ -259,7 +285,11 @@ def save_glb(
                 targets.append(
                     {
                         "POSITION": build.accessor(
-                            expr_dirs[ids, :, k], _FLOAT, target=_ARRAY_BUFFER, bounds=True, name=f"expr_{k}"
+                            expr_dirs[ids, :, k] * scale,
+                            _FLOAT,
+                            target=_ARRAY_BUFFER,
+                            bounds=True,
+                            name=f"expr_{k}",
                         )
                     }
                 )
@@ -273,7 +303,7 @@ def save_glb(
             targets.append(
                 {
                     "POSITION": build.accessor(
-                        dmpl_dirs[ids, :, k], _FLOAT, target=_ARRAY_BUFFER, bounds=True, name=f"dmpl_{k}"
+                        dmpl_dirs[ids, :, k] * scale, _FLOAT, target=_ARRAY_BUFFER, bounds=True, name=f"dmpl_{k}"
                     )
                 }
             )
@@ -330,18 +360,23 @@ def save_glb(
     )
 
     # Skin: joint j of the skin is node j; inverse bind matrices translate(-rest joint), column-major.
-    ibm = np.tile(np.eye(4), (num_joints, 1, 1))
-    ibm[:, :3, 3] = -anim.rest_joints
+    ibm = np.tile(np.eye(4), (num_joints + root_bone, 1, 1))
+    ibm[root_bone:, :3, 3] = -(anim.rest_joints + lift) * scale
     ibm_accessor = build.accessor(
-        np.ascontiguousarray(ibm.transpose(0, 2, 1)).reshape(num_joints, 16),
+        np.ascontiguousarray(ibm.transpose(0, 2, 1)).reshape(num_joints + root_bone, 16),
         _FLOAT,
         name="inverse_bind_matrices",
     )
-    gltf.skins.append(
-        pygltflib.Skin(name="skeleton", joints=list(range(num_joints)), skeleton=0, inverseBindMatrices=ibm_accessor)
-    )
     gltf.nodes.append(pygltflib.Node(name="body", mesh=0, skin=0))
-    gltf.scenes.append(pygltflib.Scene(name=anim.model_type, nodes=[0, mesh_node]))
+    top = 0
+    if root_bone:  # the root bone: at the origin, the pelvis its only child
+        top = len(gltf.nodes)
+        gltf.nodes.append(pygltflib.Node(name="root", children=[0]))
+    skin_joints = ([top] if root_bone else []) + list(range(num_joints))
+    gltf.skins.append(
+        pygltflib.Skin(name="skeleton", joints=skin_joints, skeleton=top, inverseBindMatrices=ibm_accessor)
+    )
+    gltf.scenes.append(pygltflib.Scene(name=anim.model_type, nodes=[top, mesh_node]))
     gltf.scene = 0
 
     # Animation.
@@ -359,10 +394,11 @@ def save_glb(
             )
         )
 
-    add_channel(0, "translation", build.accessor(anim.root_positions, _FLOAT, name="root_translation"))
+    add_channel(0, "translation", build.accessor((anim.root_positions + lift) * scale, _FLOAT, name="root_translation"))
     for j in range(num_joints):
         add_channel(j, "rotation", build.accessor(quats[:, j], _FLOAT, name=f"rotation_{anim.joint_names[j]}"))
-    if (expression_slot is not None and anim.expression_varies) or dmpl_slot is not None:
+    every_frame = engine is not None and bool(targets)  # engines import morph curves only when animated
+    if (expression_slot is not None and anim.expression_varies) or dmpl_slot is not None or every_frame:
         weights = np.zeros((frames, len(targets)))
         expression, base = anim.expression, anim.base_expression  # both set for a model with expressions
         if expression_slot is not None and expression is not None and base is not None and anim.expression_varies:
@@ -390,6 +426,9 @@ def save_glb(
         pose_corrective_max=corrective,
         morph_targets=target_names,
         warnings=notes,
+        engine=engine,
+        unit_scale=scale,
+        ground_lift=float(lift[1]) if engine is not None else None,
     )
     gltf.asset.extras = {
         "smplcore": {
@@ -405,6 +444,9 @@ def save_glb(
             "pose_corrective_max_m": corrective,
             "uv_seam_split": split is not None,
             "model_vertices": num_verts,
+            "engine": engine,
+            "unit_scale": scale,
+            "ground_lift_m": float(lift[1]),
         }
     }
 
@@ -416,6 +458,18 @@ def save_glb(
     gltf.save_binary(str(path))
     report.file_size = path.stat().st_size
     return report
+
+
+def _lowest_point(anim: Animation) -> float:
+    """The lowest y of the skinned body (full weights, no correctives) over every frame of ``anim``."""
+    from smplcore.export.animation import lbs
+
+    lowest = np.inf
+    for start in range(0, anim.num_frames, 64):
+        stop = min(start + 64, anim.num_frames)
+        posed = lbs(anim.rest_vertices, anim.skinning_matrices(slice(start, stop)), anim.weights)
+        lowest = min(lowest, float(posed[..., 1].min()))
+    return lowest
 
 
 def _version() -> str:

@@ -14,9 +14,15 @@ for float32 models).
 robust reprojection cost, staged Levenberg–Marquardt, open priors (anatomical joint limits, elbow/knee
 bending) and SMPLify's GMM or VPoser v2 when the user has them (:class:`GMMPrior`, :class:`VPoserPrior`);
 the focal length known or estimated (``estimate_focal``).
+
+No fit returns what it did not find (:mod:`smplcore.fit.checks`): option values are checked (a NaN weight
+is an error, not a switched-off prior), targets more than 10x off the model's size are refused (millimetres),
+bodies left further from their targets than half their spread are flagged not converged with a warning, and
+a non-finite parameter or error raises :class:`FitError` instead of being returned.
 """
 
 from smplcore.fit.camera import Camera
+from smplcore.fit.checks import FitError
 from smplcore.fit.convert import convert, correspondence
 from smplcore.fit.joints import fit_joints
 from smplcore.fit.keypoints2d import fit_keypoints
@@ -27,6 +33,7 @@ from smplcore.fit.vposer import VPoserPrior
 
 __all__ = [
     "Camera",
+    "FitError",
     "FitResult",
     "GMMPrior",
     "VPoserPrior",

@@ -15,9 +15,18 @@ import numpy as np
 
 from smplcore.errors import ShapeError
 
+#: Bounds of a camera's values: beyond them the projections overflow or lose every digit.
+MAX_PIXELS = 1e9
+MAX_METRES = 1e9
+
 
 def _finite(value: Any, name: str, shape: tuple[int, ...]) -> np.ndarray:
-    array = np.asarray(value.detach().cpu().numpy() if hasattr(value, "detach") else value, dtype=np.float64)
+    if value is None or isinstance(value, (str, bytes)):
+        raise TypeError(f"{name}: expected numbers, got {type(value).__name__}")
+    try:
+        array = np.asarray(value.detach().cpu().numpy() if hasattr(value, "detach") else value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name}: expected numbers, got {type(value).__name__}") from exc
     if array.shape != shape:
         raise ShapeError(f"{name}: expected shape {shape}, got {array.shape}")
     if not np.all(np.isfinite(array)):
@@ -51,18 +60,20 @@ class Camera:
     translation: np.ndarray  # (3,)
 
     def __init__(self, focal: Any, center: Any, rotation: Any = None, translation: Any = None) -> None:
-        f = np.asarray(focal, dtype=np.float64)
-        f = np.full(2, float(f)) if f.ndim == 0 else _finite(f, "focal", (2,))
-        if not np.all(np.isfinite(f)) or np.any(f <= 0):
-            raise ValueError(f"focal: expected positive focal lengths in pixels, got {f.tolist()}")
+        f = _finite(focal, "focal", np.shape(focal) if np.ndim(focal) == 0 else (2,))
+        f = np.full(2, float(f)) if f.ndim == 0 else f
+        if not np.all(np.isfinite(f)) or np.any(f <= 0) or np.any(f > MAX_PIXELS) or np.any(f < 1 / MAX_PIXELS):
+            raise ValueError(f"focal: expected positive focal lengths in pixels (1e-9..1e9), got {f.tolist()}")
         if center is None:
             raise ValueError("center: the principal point (c_x, c_y) in pixels is needed (often the image centre)")
         c = _finite(center, "center", (2,))
+        if np.any(np.abs(c) > MAX_PIXELS):
+            raise ValueError(f"center: expected a principal point within 1e9 pixels, got {c.tolist()}")
         rot: np.ndarray
         if rotation is None:
             rot = np.eye(3)
         else:
-            rot = np.asarray(rotation, dtype=np.float64)
+            rot = _finite(rotation, "rotation", np.shape(rotation) if np.shape(rotation) == (3,) else (3, 3))
             if rot.shape == (3,):
                 from smplcore.engine import rodrigues
 
@@ -71,6 +82,8 @@ class Camera:
             if np.abs(rot @ rot.T - np.eye(3)).max() > 1e-5 or np.linalg.det(rot) < 0:
                 raise ValueError("rotation: expected a rotation matrix (orthonormal, determinant +1) or an axis-angle")
         t = np.zeros(3) if translation is None else _finite(translation, "translation", (3,))
+        if np.any(np.abs(t) > MAX_METRES):
+            raise ValueError(f"translation: expected metres within 1e9, got {t.tolist()}")
         for name, value in (("focal", f), ("center", c), ("rotation", rot), ("translation", t)):
             value.setflags(write=False)
             object.__setattr__(self, name, value)
@@ -80,14 +93,21 @@ class Camera:
         """A camera for an image of ``width`` × ``height`` pixels: the principal point at the centre and,
         without ``focal``, the focal length set to the image diagonal (a field of view of about 53°
         across the diagonal — a guess; pass the real focal when it is known)."""
-        if not (width > 0 and height > 0):
+        if not all(isinstance(v, (int, float, np.number)) and not isinstance(v, bool) for v in (width, height)):
+            raise TypeError(f"width, height: expected numbers (pixels), got {width!r} x {height!r}")
+        if not (np.isfinite(width) and np.isfinite(height) and width > 0 and height > 0):
             raise ValueError(f"width, height: expected a positive image size, got {width} x {height}")
         f = float(np.hypot(width, height)) if focal is None else focal
         return cls(focal=f, center=(width / 2.0, height / 2.0))
 
     def to_camera(self, points: Any) -> np.ndarray:
         """(..., 3) world points in camera coordinates ``R X + t``."""
-        x = np.asarray(points, dtype=np.float64)
+        if isinstance(points, (str, bytes)):
+            raise TypeError(f"points: expected (..., 3) numbers, got {type(points).__name__}")
+        try:
+            x = np.asarray(points, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise TypeError(f"points: expected (..., 3) numbers, got {type(points).__name__}") from exc
         if x.shape[-1:] != (3,):
             raise ShapeError(f"points: expected shape (..., 3), got {x.shape}")
         return x @ self.rotation.T + self.translation

@@ -45,6 +45,45 @@ def _floats(text: str) -> tuple[float, ...]:
         raise argparse.ArgumentTypeError(f"expected numbers separated by commas, got {text!r}") from None
 
 
+def _positive_floats(text: str) -> tuple[float, ...]:
+    values = _floats(text)
+    if not values or not all(np.isfinite(v) and v > 0 for v in values):
+        raise argparse.ArgumentTypeError(f"expected positive numbers (pixels), got {text!r}")
+    return values
+
+
+def _extrinsics(text: str) -> tuple[float, ...]:
+    """A world-to-camera matrix: 12 or 16 numbers (3 x 4 or 4 x 4, row by row), or a .npy / text file of it."""
+    path = Path(text)
+    if path.suffix.lower() in (".npy", ".txt", ".csv") or path.exists():
+        if not path.is_file():
+            raise argparse.ArgumentTypeError(f"{text}: no such file")
+        try:
+            values = np.load(path) if path.suffix.lower() == ".npy" else np.loadtxt(path, delimiter=None, ndmin=2)
+        except (OSError, ValueError) as exc:
+            raise argparse.ArgumentTypeError(f"{text}: cannot read a matrix ({exc})") from None
+        flat = np.asarray(values, np.float64).reshape(-1)
+    else:
+        flat = np.asarray(_floats(text))
+    if flat.size not in (12, 16):
+        raise argparse.ArgumentTypeError(f"expected a 3 x 4 or 4 x 4 world-to-camera matrix (12 or 16 numbers), got "
+                                         f"{flat.size} numbers")  # fmt: skip
+    matrix = np.eye(4)
+    matrix[: flat.size // 4] = flat.reshape(-1, 4)
+    rotation = matrix[:3, :3]
+    if (
+        not np.all(np.isfinite(matrix))
+        or not np.allclose(matrix[3], [0, 0, 0, 1])
+        or np.abs(rotation @ rotation.T - np.eye(3)).max() > 1e-5
+        or np.linalg.det(rotation) < 0
+    ):
+        raise argparse.ArgumentTypeError(
+            "expected a rigid world-to-camera transform [R | t] (R a rotation, last row 0 0 0 1), OpenCV axes "
+            "(x right, y down, z forward)"
+        )
+    return tuple(float(v) for v in matrix.reshape(-1))
+
+
 def _positive(text: str) -> float:
     """A finite number > 0 (``--fps nan`` would write a file the readers refuse)."""
     try:
@@ -79,10 +118,16 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--source-model-path", default=None, help="conversion: the source motion's model (default: open)")
     p.add_argument("--convention", default=None, help="keypoint/joint convention (default: the reader's)")
     p.add_argument("--joint-names", default=None, help=".npy joints: the model joint names, comma-separated")
-    p.add_argument("--focal", type=_floats, default=None, help="2D: focal length f or fx,fy (pixels)")
+    p.add_argument("--focal", type=_positive_floats, default=None, help="2D: focal length f or fx,fy (pixels)")
     p.add_argument("--center", type=_floats, default=None, help="2D: principal point cx,cy (pixels)")
     p.add_argument(
-        "--image-size", type=_floats, default=None,
+        "--extrinsics", type=_extrinsics, default=None, metavar="MATRIX",
+        help="2D: the camera's world-to-camera transform [R | t] (OpenCV axes: x right, y down, z forward), 12 or "
+        "16 numbers row by row or a .npy / text file of them; the fit is written in that world. Default: a level "
+        "camera, Y up, the lowest point of the bodies on the ground y = 0 (the output records the extrinsics)",
+    )  # fmt: skip
+    p.add_argument(
+        "--image-size", type=_positive_floats, default=None,
         help="2D: W,H; principal point at the centre; without --focal the focal length is the image diagonal",
     )  # fmt: skip
     p.add_argument(
@@ -95,6 +140,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--fps", type=_positive, default=30.0, help="frame rate written to the output (default 30)")
     p.add_argument("--person", type=int, default=0, help="OpenPose: which person of each frame (default 0)")
     p.add_argument("--smoothness", type=float, default=1e-3, help="sequences: temporal smoothness weight")
+    p.add_argument(
+        "--max-iter", type=_positive_int, default=None, metavar="N",
+        help="the solver's iteration budget per round (default: each fit's, 25 for 2D keypoints); frames that use it "
+        "all before their cost settles are reported",
+    )  # fmt: skip
     p.add_argument("--workers", type=int, default=1, help="folder of inputs: processes (default 1)")
     p.add_argument(
         "--ray",
@@ -105,8 +155,60 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="folder of inputs: run the fits as Ray tasks (a local instance, or ADDRESS / 'auto' for a cluster)",
     )
     p.add_argument("--overwrite", action="store_true", help="refit inputs whose output exists")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-progress", "--quiet", dest="no_progress", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected 1 or more, got {value}")
+    return value
+
+
+def _check_camera(args: argparse.Namespace, source: Path) -> None:
+    """Camera options that cannot work, refused before any fit (exit status 2); absurd focal lengths too."""
+    from smplcore.fit.inputs import input_kind
+
+    if args.focal is not None and args.center is None and args.image_size is None:
+        raise ValueError("--focal: the principal point is needed too: add --center cx,cy or --image-size W,H")
+    if args.focal is None and args.image_size is None and source.exists():
+        inputs = [source] if _is_single(source) else find_inputs(source) if source.is_dir() else []
+        openpose = [p for p in inputs if p.is_dir() and _safe_kind(input_kind, p) == "openpose"]
+        if openpose:
+            raise ValueError(
+                f"camera: OpenPose keypoints ({openpose[0]}) need the camera: pass --focal f --center cx,cy, or "
+                "--image-size W,H (the focal length is then the image diagonal)"
+            )
+    if args.focal is None:
+        return
+    if args.image_size is not None:
+        width, height = args.image_size
+    else:
+        width, height = 2.0 * abs(args.center[0]), 2.0 * abs(args.center[1])  # the image around its centre
+    diagonal = float(np.hypot(width, height))
+    if diagonal <= 0:
+        return
+    for f in args.focal:
+        fov = float(np.degrees(2.0 * np.arctan(diagonal / (2.0 * f))))
+        text = f"--focal {f:g}: a {fov:.3g}° field of view across the {diagonal:.0f} px image diagonal"
+        if fov > 170.0 or fov < 0.1:
+            raise ValueError(
+                f"{text}, not a camera lens; the focal length is in pixels: focal mm x image width px / sensor "
+                f"width mm (about {diagonal:.0f} px for a normal lens)"
+            )
+        if fov > 120.0 or fov < 2.0:
+            print(f"warning: {text}; is it in pixels (focal mm x image width px / sensor width mm)?", file=sys.stderr)
+
+
+def _safe_kind(kind, path: Path) -> str | None:
+    try:
+        return kind(path)
+    except (ValueError, OSError):
+        return None
 
 
 def _settings(args: argparse.Namespace):
@@ -139,6 +241,8 @@ def _settings(args: argparse.Namespace):
         estimate_focal=args.estimate_focal,
         vposer=None if args.vposer is None else str(Path(args.vposer).resolve()),
         gmm=None if args.gmm is None else str(Path(args.gmm).resolve()),
+        extrinsics=args.extrinsics,
+        max_iter=args.max_iter,
     )
     if settings.vposer or settings.gmm:  # read once here: a bad prior file is one clear error, not one per input
         from smplcore.fit.inputs import _priors
@@ -227,6 +331,7 @@ def run(args: argparse.Namespace) -> int:
         from smplcore.io import open_input
 
         open_input(source, "an input file (.json, .npy, .npz) or folder")[0].close()
+    _check_camera(args, source)
     if _is_single(source):
         if out.suffix.lower() != ".npz":
             raise ValueError(f"-o/--output: expected a .npz file for one input, got {out}")
@@ -274,7 +379,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if bar is not None:
             bar.close()
-    return _report(entries, manifest)
+    return _report(entries, manifest, max_iter=args.max_iter)
 
 
 def _output_folder(folder: Path) -> None:
@@ -355,6 +460,12 @@ def _run_ray(todo: list, settings: Any, address: str, workers: int, entries: lis
             ray.shutdown()
 
 
+def _rows(count: int, entry: dict[str, Any]) -> str:
+    """``1 frame``, ``3 frames``, ``1 body`` (a COCO file: one row per person of each image)."""
+    unit = entry.get("unit", "frames")
+    return f"{count} { ({'frames': 'frame', 'bodies': 'body'}.get(unit, unit) if count == 1 else unit) }"
+
+
 def _remove_partial(folders: set[Path], pids: set[int | None]) -> None:
     """Remove the temporary files of ended workers (their outputs were never renamed into place)."""
     from smplcore.jobs import TMP_SUFFIX
@@ -366,7 +477,9 @@ def _remove_partial(folders: set[Path], pids: set[int | None]) -> None:
                     tmp.unlink()
 
 
-def _report(entries: list[dict[str, Any]], manifest: Path | None, quiet: bool = False) -> int:
+def _report(
+    entries: list[dict[str, Any]], manifest: Path | None, quiet: bool = False, max_iter: int | None = None
+) -> int:
     if quiet:  # after Ctrl-C: only the manifest of what was done
         _write_manifest(entries, manifest)
         return 130
@@ -382,18 +495,26 @@ def _report(entries: list[dict[str, Any]], manifest: Path | None, quiet: bool = 
             continue
         unit = e.get("error_unit", "")
         scale, shown = (1000.0, "mm") if unit == "m" else (1.0, unit)
-        print(f"wrote {e['output']}: {e['frames']} frames, mean error {e['mean_error'] * scale:.2f} {shown}")
+        print(f"wrote {e['output']}: {_rows(e['frames'], e)}, mean error {e['mean_error'] * scale:.2f} {shown}")
         if e.get("missing"):
             print(f"  frames without a detection (filled from the nearest frame): {e['missing'][:20]}")
+        if e.get("images_without_person"):
+            unseen = e["images_without_person"]
+            more = f" … (+{len(unseen) - 20})" if len(unseen) > 20 else ""
+            print(f"  images without a person of 6 or more labelled keypoints (not in the output): "
+                  f"{', '.join(unseen[:20])}{more}")  # fmt: skip
     lagging = [e for e in done if e.get("not_converged")]
     if lagging:
-        print("not converged:")
+        budget = f"--max-iter {max_iter}" if max_iter is not None else "the default --max-iter"
+        print(f"not converged: these frames used the whole iteration budget ({budget}) before the solver's "
+              "stopping test was met; the mean error above says how far they got (a larger --max-iter "
+              "iterates further):")  # fmt: skip
         for e in lagging:
             frames = e["not_converged"]
             more = f" … (+{len(frames) - 20})" if len(frames) > 20 else ""
-            print(f"  {e['input']}: frames {frames[:20]}{more}")
+            print(f"  {e['input']}: {len(frames)} of {_rows(e['frames'], e)} {frames[:20]}{more}")
     print(f"{len(done)} fitted, {len(skipped)} skipped (bad input), {len(kept)} already done, "
-          f"{len(lagging)} with frames not converged")  # fmt: skip
+          f"{len(lagging)} stopped at the iteration budget")  # fmt: skip
     stopped = next((e for e in skipped if e.get("fatal")), None)
     if stopped is not None:
         print(f"smplcore fit: stopped: {stopped['reason']}; the outputs written are kept", file=sys.stderr)

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from smplcore.errors import ModelFileError
+from smplcore.fit import checks
 from smplcore.fit.body import FitBody
 from smplcore.fit.result import FitResult, as_array
 
@@ -63,8 +64,14 @@ def _source_vertices(model: Any, params: dict[str, Any]) -> tuple[np.ndarray, np
     return np.asarray(verts), np.asarray(joints)
 
 
+#: Source vertices one target vertex may be mapped from (official files: the 3 corners of a triangle). Bounds
+#: the memory of a deformation-transfer file's map to 16 x 64 bytes per target vertex (~11 MB for SMPL-X).
+MAX_SOURCES_PER_VERTEX = 64
+
+
 def read_deformation_transfer(path: str | Path, num_source: int, num_target: int) -> Correspondence:
-    """The vertex map of an official deformation-transfer pickle (``mtx`` or ``matrix``), read safely."""
+    """The vertex map of an official deformation-transfer pickle (``mtx`` or ``matrix``), read safely; rows
+    with more than :data:`MAX_SOURCES_PER_VERTEX` weights are refused (memory bounded by the target's size)."""
     from smplcore.io import numeric_array, read_arrays
 
     path = Path(path)
@@ -84,7 +91,18 @@ def read_deformation_transfer(path: str | Path, num_source: int, num_target: int
     import scipy.sparse as sp
 
     mtx = sp.csr_matrix(mtx)[:, :num_source].tocsr()
-    width = max(1, int(np.diff(mtx.indptr).max()))
+    counts = np.diff(mtx.indptr)
+    width = max(1, int(counts.max(initial=0)))
+    if width > MAX_SOURCES_PER_VERTEX:  # the (V, width) tables below would take V x width x 16 bytes
+        row = int(np.argmax(counts))
+        raise ModelFileError(
+            path,
+            f"row {row} maps one target vertex from {width} source vertices; a deformation transfer uses a few "
+            f"(a triangle's three; at most {MAX_SOURCES_PER_VERTEX} are accepted)",
+            key=key,
+        )
+    if not np.all(np.isfinite(mtx.data)):
+        raise ModelFileError(path, "holds NaN or infinite weights", key=key)
     indices = np.zeros((rows, width), np.int64)
     weights = np.zeros((rows, width))
     for i in range(rows):
@@ -245,6 +263,10 @@ def convert(
     from smplcore.fit.joints import fit_joints
     from smplcore.fit.vertices import fit_vertices
 
+    if not isinstance(params, dict):
+        raise TypeError(f"params: expected a dict of the source model's forward keywords, got {type(params).__name__}")
+    if points is not None:
+        points = checks.count("points", points, 3)
     for name, value in params.items():
         if value is not None:
             as_array(value, f"params[{name!r}]")

@@ -35,6 +35,10 @@ from smplcore.fit.solver import (
 
 # Bodies per chunk: keeps the (n, 3, 3, chunk) working arrays of a 10k-vertex mesh near 100 MB.
 _CHUNK_POINTS = 1_500_000
+# ... and the (chunk, P, P) Gauss-Newton matrices and (chunk, 3 n, P) Jacobians of a few points (22 joints:
+# P = 85) near 30 MB each: memory grows with the batch by what one body's arrays take, not by the batch's
+# whole stack at once (4,000 frames of 22 joints took 570 MB above the model; now ~10 % of that).
+_CHUNK_VALUES = 4_000_000
 # Below this many points × bodies in all, one thread: a thread's start-up per call costs more than the
 # work it shares (22 joints of a 64-frame sequence ran 30 % slower in two threads, 256 frames 11 %).
 _THREAD_MIN_WORK = 16_384
@@ -169,7 +173,7 @@ def refine(
     if coupled:
         parts = [np.arange(batch)]
     else:  # a chunk per thread, each small enough for the working arrays
-        size = max(1, _CHUNK_POINTS // max(1, len(obj.points.ids)))
+        size = chunk_bodies(len(obj.points.ids), len(cols))
         parts = [p for c in chunks(batch, workers) for p in np.array_split(c, -(-len(c) // size))]
 
     def run(rows: np.ndarray) -> int:
@@ -193,18 +197,38 @@ def refine(
     return _unflat(body, x), costs, dists, converged, most
 
 
-def _threaded(method: Callable, workers: int | None) -> Callable:
-    """``method(state, rows)`` over chunks of the bodies in threads, the results joined: coupled bodies
-    are one system for the step but independent for the cost, gradient and Gauss-Newton matrix."""
+def chunk_bodies(points: int, params: int) -> int:
+    """Bodies per chunk for ``points`` target points and ``params`` fitted parameters (see _CHUNK_VALUES)."""
+    per_body = max(1, params * (params + 3 * points))
+    return max(1, min(_CHUNK_POINTS // max(1, points), _CHUNK_VALUES // per_body))
+
+
+def _threaded(method: Callable, workers: int | None, size: int | None = None) -> Callable:
+    """``method(state, rows)`` over chunks of the bodies in threads (and of at most ``size`` bodies), the
+    results joined: coupled bodies are one system for the step but independent for the cost, gradient and
+    Gauss-Newton matrix."""
 
     def call(state: State, rows: np.ndarray) -> Any:
         parts = chunks(len(rows), workers)
+        if size is not None:
+            parts = [p for c in parts for p in np.array_split(c, -(-len(c) // size))]
         if len(parts) == 1:
             return method(state, rows)
-        outs = map_chunks(lambda p: method(state.take(p), rows[p]), parts, workers)
-        if isinstance(outs[0], tuple):
-            return tuple(np.concatenate(z) for z in zip(*outs))
-        return np.concatenate(outs)
+        # each chunk's results are written into the joined arrays as it comes (no list of them, then a copy)
+        first = method(state.take(parts[0]), rows[parts[0]])
+        as_tuple = isinstance(first, tuple)
+        firsts = first if as_tuple else (first,)
+        outs = tuple(np.empty((len(rows), *f.shape[1:]), f.dtype) for f in firsts)
+
+        def fill(p: np.ndarray, result: Any = None) -> None:
+            result = method(state.take(p), rows[p]) if result is None else result
+            for out, part in zip(outs, result if as_tuple else (result,)):
+                out[p] = part
+
+        fill(parts[0], first)
+        del first, firsts
+        map_chunks(fill, parts[1:], workers)
+        return outs if as_tuple else outs[0]
 
     return call
 
@@ -213,7 +237,8 @@ def _solve(body, problem, x, rows, shared_cols, coupled, max_iter, tol, step_tol
     """LM on the bodies ``rows`` (x: their (b, Q + K + 3) parameters); ``workers`` threads share the
     per-body work of coupled bodies."""
     cols = problem.cols
-    evaluate, hessian = _threaded(problem.evaluate, workers), _threaded(problem.hessian, workers)
+    size = chunk_bodies(len(problem.obj.points.ids), len(cols)) if coupled else None
+    evaluate, hessian = _threaded(problem.evaluate, workers, size), _threaded(problem.hessian, workers, size)
     scale = np.maximum(problem.obj.weights[rows].sum(1), 1e-300)
     cost, grad, dist = evaluate(_unflat(body, x), rows)
     converged = cost <= abs_tol * scale

@@ -6,7 +6,14 @@ JSON (every annotated person an independent body, in image order), a ``.npy`` of
 or an AMASS-style ``.npz`` of another model (converted). The output is what
 :func:`smplcore.motion.load_motion` (``smplcore export`` / ``smplcore process``) reads, plus
 ``fit_error`` (T,) (pixels for 2D, metres otherwise), ``fit_converged`` (T,) and ``fit_kind``; for 2D
-inputs also ``fit_focal`` (T, 2), the focal length each frame was fitted with (given or estimated).
+inputs also ``fit_focal`` (T, 2), the focal length each frame was fitted with (given or estimated), and the
+camera of each frame: ``camera_intrinsics`` (T, 3, 3) and ``camera_extrinsics`` (T, 4, 4), world to camera
+in OpenCV axes (x right, y down, z forward), ``X_cam = E @ [X_world, 1]``.
+
+The world of a 2D fit (``fit_frame``): without given extrinsics, Y up, the camera level (looking along
+world -Z, so that a body facing the camera faces +Z as SMPL's rest pose does), the lowest vertex of the
+sequence (of each image's people, for COCO) on the ground ``y = 0`` and the first frame's pelvis above the
+origin; with ``extrinsics``, the world they are given in (nothing moved).
 """
 
 from __future__ import annotations
@@ -40,6 +47,8 @@ class FitSettings:
     estimate_focal: bool = False  # 2D without ``focal``: estimate it from the image diagonal (else keep that)
     vposer: str | None = None
     gmm: str | None = None
+    extrinsics: tuple[float, ...] | None = None  # 2D: world-to-camera (4 x 4 row-major, OpenCV axes); None: level
+    max_iter: int | None = None  # the solvers' iteration budget (None: each fit's default)
     extra: dict[str, Any] = field(default_factory=dict)
 
 
@@ -93,10 +102,23 @@ def _priors(settings: FitSettings) -> dict[str, Any]:
     return out
 
 
+#: World-to-camera rotation of the default camera: level, looking along world -Z, OpenCV axes (y down).
+LEVEL = np.diag([1.0, -1.0, -1.0])
+
+
+def _extrinsics(settings: FitSettings) -> tuple[np.ndarray, np.ndarray]:
+    """World-to-camera rotation (3, 3) and translation (3,) of a 2D input's camera."""
+    if settings.extrinsics is None:
+        return LEVEL, np.zeros(3)
+    matrix = np.asarray(settings.extrinsics, np.float64).reshape(4, 4)
+    return matrix[:3, :3], matrix[:3, 3]
+
+
 def _camera(settings: FitSettings, size: tuple[float, float] | None = None):
     """The camera of a 2D input and whether its focal length is to be estimated."""
     from smplcore.fit.camera import Camera
 
+    rotation, translation = _extrinsics(settings)
     size = settings.image_size or size
     if settings.focal is not None:
         center = settings.center
@@ -105,10 +127,38 @@ def _camera(settings: FitSettings, size: tuple[float, float] | None = None):
         if center is None:
             raise ValueError("--center: the principal point is needed with --focal (or give --image-size)")
         focal = settings.focal[0] if len(settings.focal) == 1 else settings.focal
-        return Camera(focal=focal, center=center), False
+        return Camera(focal=focal, center=center, rotation=rotation, translation=translation), False
     if size is not None:
-        return Camera.from_image_size(*size), settings.estimate_focal
+        guess = Camera.from_image_size(*size)
+        return Camera(guess.focal, guess.center, rotation, translation), settings.estimate_focal
     raise ValueError("camera: 2D keypoints need the camera: pass --focal and --center, or --image-size W,H")
+
+
+def _matrices(camera: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Intrinsics (3, 3) and extrinsics (4, 4, world to camera) of a :class:`smplcore.fit.Camera`."""
+    k = np.eye(3)
+    k[[0, 1], [0, 1]] = camera.focal
+    k[:2, 2] = camera.center
+    e = np.eye(4)
+    e[:3, :3], e[:3, 3] = camera.rotation, camera.translation
+    return k, e
+
+
+def _ground(model: Any, params: dict[str, np.ndarray], extrinsics: np.ndarray, rows: np.ndarray) -> None:
+    """Move the bodies ``rows`` (and their cameras) so that their lowest vertex is at y = 0 and the first
+    one's pelvis above the origin: a translation of the world, in place."""
+    lowest = np.inf
+    root = None
+    for start in range(0, len(rows), 256):  # a long sequence in chunks of meshes
+        chunk = rows[start : start + 256]
+        out = model(**{k: v[chunk] for k, v in params.items() if k != "betas" or v.ndim == 2})
+        lowest = min(lowest, float(np.asarray(out.vertices)[..., 1].min()))
+        if root is None:
+            root = np.asarray(out.joints, np.float64)[0, 0]
+    assert root is not None  # rows is not empty
+    shift = np.array([-root[0], -lowest, -root[2]])
+    params["transl"][rows] += shift
+    extrinsics[rows, :3, 3] -= extrinsics[rows, :3, :3] @ shift
 
 
 def _coco_image_sizes(path: Path) -> dict[Any, tuple[float, float]]:
@@ -135,7 +185,10 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
     kind = input_kind(path)
     model = build_model(settings) if model is None else model
     extra = dict(settings.extra)
+    if settings.max_iter is not None:
+        extra["max_iter"] = settings.max_iter
     labels = None
+    unseen: list[str] = []
     if kind in ("openpose", "coco"):
         from smplcore import keypoints as kp
 
@@ -173,14 +226,18 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
                 results.append((rows, r))
             labels = {"image_id": np.array([str(array.frames[f]) for f in frame]), "person": person}
             count = len(frame)
+            # images with nobody to fit are not in the output: the summary names them
+            unseen = [str(array.frames[f]) for f in sorted(set(range(len(array.frames))) - set(frame.tolist()))]
         error: np.ndarray = np.full(count, np.nan)  # frames without the person: NaN, not converged, nearest frame's fit
         converged = np.zeros(count, bool)
         focal = np.full((count, 2), np.nan)
+        intrinsics, extrinsics = np.tile(np.eye(3), (count, 1, 1)), np.tile(np.eye(4), (count, 1, 1))
         parts: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
         for rows, r in results:
             error[rows] = r.reprojection_error
             converged[rows] = r.converged
             focal[rows] = r.camera.focal
+            intrinsics[rows], extrinsics[rows] = _matrices(r.camera)
             for key, value in r.params.items():
                 parts.setdefault(key, []).append((rows, np.asarray(value)))
         params = {k: _gather(v, count) for k, v in parts.items()}
@@ -188,9 +245,13 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
         if len(fitted) < count:
             nearest = fitted[np.abs(np.arange(count)[:, None] - fitted[None]).argmin(1)]
             params = {k: v[nearest] for k, v in params.items()}
-        betas = params["betas"].mean(0)
         if len(fitted) < count:
-            focal = focal[nearest]
+            focal, intrinsics, extrinsics = focal[nearest], intrinsics[nearest], extrinsics[nearest]
+        if settings.extrinsics is None:  # the level camera's world: feet on the ground, per camera
+            groups = [np.arange(count)] if kind == "openpose" else [rows for rows, _ in results]
+            for rows in groups:
+                _ground(model, params, extrinsics, rows)
+        betas = params["betas"].mean(0)
     elif kind == "joints":
         from smplcore.io import numeric_array, read_arrays
 
@@ -223,7 +284,8 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
     if labels is not None:
         arrays.update(labels)
     if kind in ("openpose", "coco"):
-        arrays["fit_focal"] = focal
+        arrays.update(fit_focal=focal, camera_intrinsics=intrinsics, camera_extrinsics=extrinsics)
+        arrays["fit_frame"] = np.array("world" if settings.extrinsics is None else "given extrinsics")
     summary = {
         "kind": kind,
         "frames": len(error),
@@ -231,6 +293,8 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
         "missing": np.flatnonzero(~np.isfinite(error)).tolist(),  # no detection: the nearest frame's fit
         "mean_error": float(np.nanmean(error)),
         "error_unit": "px" if kind in ("openpose", "coco") else "m",
+        "unit": "bodies" if kind == "coco" else "frames",  # COCO: every person of every image, one row each
+        "images_without_person": unseen,
     }
     return arrays, summary
 
@@ -267,7 +331,7 @@ def _motion_arrays(model: Any, params: dict[str, np.ndarray], betas: np.ndarray,
 
     blocks = [np.asarray(params[b]).reshape(len(params["transl"]), -1) for b in model.pose_blocks]
     poses = np.concatenate(blocks, axis=1)
-    model_type = "smpl" if model.model_type == "open" else model.model_type
+    model_type = model.model_type  # the model fitted ("open" too: its betas are its own, not SMPL's)
     if POSE_WIDTH.get(model_type) != poses.shape[1]:
         raise ModelFileError(
             "<fit>", f"the {model.model_type} fit gives {poses.shape[1]} pose values, not an AMASS layout"

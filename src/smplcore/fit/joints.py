@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from smplcore.errors import ShapeError
+from smplcore.fit import checks
 from smplcore.fit.body import FitBody, pose_points
 from smplcore.fit.gauss_newton import refine
 from smplcore.fit.initialize import kabsch, shape_and_translation
@@ -31,7 +32,11 @@ def joint_points(body: FitBody, joint_names: Any, count: int) -> np.ndarray:
             raise ShapeError(f"joints: {count} joints given, the model has {len(names)} output joints")
         picked = list(range(count))
     else:
+        if isinstance(joint_names, str) or not hasattr(joint_names, "__iter__"):
+            raise TypeError(f"joint_names: expected a sequence of joint names, got {type(joint_names).__name__}")
         joint_names = list(joint_names)
+        if any(not isinstance(n, str) for n in joint_names):
+            raise TypeError(f"joint_names: expected model joint names (str), got {joint_names[:3]!r}...")
         if len(joint_names) != count:
             raise ShapeError(f"joint_names: {len(joint_names)} names for {count} joints")
         lookup = {n: i for i, n in enumerate(names)}
@@ -158,7 +163,10 @@ def fit_joints(
 
     Returns
     -------
-    FitResult with ``params`` and ``joint_error`` (B,) (metres).
+    FitResult with ``params`` and ``joint_error`` (B,) (metres). Targets whose size is more than 10x off the
+    model's (millimetres, centimetres) are refused with a ValueError naming ``joints``; bodies left further
+    from their targets than half the targets' spread are flagged not converged, with a warning; a fit that
+    would come out non-finite raises :class:`smplcore.fit.FitError` (never a NaN result).
 
     Examples
     --------
@@ -171,16 +179,31 @@ def fit_joints(
     True
     """
     body = FitBody.from_model(model)
+    shape_prior, pose_prior, smoothness = checks.options(
+        "weight", {"shape_prior": shape_prior, "pose_prior": pose_prior, "smoothness": smoothness}
+    ).values()
+    tol = checks.positive("tol", tol)
+    max_iter, smoothing_rounds = checks.options(
+        "iterations", {"max_iter": max_iter, "smoothing_rounds": smoothing_rounds}
+    ).values()
+    workers = checks.workers(workers)
+    init = checks.init_params(init, body)
     jt = as_array(joints, "joints")
     if jt.ndim == 2:
         jt = jt[None]
     if jt.ndim != 3 or jt.shape[2] != 3:
         raise ShapeError(f"joints: expected (B, n, 3), got {tuple(np.shape(joints))}")
     batch, count = jt.shape[:2]
+    checks.nonempty_batch("joints", batch)
+    if count < 3:
+        raise ShapeError(f"joints: expected at least 3 joints per body, got {count}")
     ids = joint_points(body, joint_names, count)
     weights = _weights(joint_weights, "joint_weights", batch, count)
     if np.any((weights > 0).sum(1) < 3):
         raise ValueError("joint_weights: every body needs at least 3 joints with positive weight")
+    rest = pose_points(body, body.points(ids), body.full_pose(np.zeros((1, body.num_pose))),
+                       np.zeros((1, body.num_coeffs)), np.zeros((1, 3))).points[0]  # fmt: skip
+    checks.check_scale("joints", jt, rest, weights > 0)
     free, shared = coefficient_masks(body, fit_betas, False, share_betas)
     start = params_to_state(body, {**(init or {}), **({} if betas is None else {"betas": betas})}, batch)
     prior = body.pose_prior_weights(pose_prior)
@@ -203,9 +226,11 @@ def fit_joints(
     posed = pose_points(body, body.points(ids), body.full_pose(state.pose), state.coeffs, state.transl).points
     dist = np.linalg.norm(posed - jt, axis=-1)
     error = (dist * (weights > 0)).sum(1) / (weights > 0).sum(1)
-    return FitResult(
+    converged = checks.flag_gross(converged, error, checks.spread_of(jt, weights > 0), "fit_joints", "m")
+    result = FitResult(
         params=state_to_params(body, model, state), joint_error=error, converged=converged, iterations=iterations
     )
+    return checks.finite_result(result, "fit_joints")
 
 
 def _neighbour_prior(pose: np.ndarray, smoothness: float, prior: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from smplcore.errors import ShapeError
+from smplcore.fit import checks
 from smplcore.fit.body import FitBody
 from smplcore.fit.camera import Camera
 from smplcore.fit.focal import FOCAL_PRIOR, estimate_focal_length
@@ -38,7 +39,7 @@ def keypoint_map(body: FitBody, model: Any, convention: Any, regressor: Any = No
 
     try:
         dst = keypoints.layout(convention, "convention")
-    except (KeyError, ValueError) as exc:
+    except (KeyError, ValueError, TypeError) as exc:
         raise ValueError(
             f"convention: unknown keypoint convention {convention!r}; use one of {keypoints.conventions()} "
             "or a list of point names"
@@ -48,6 +49,8 @@ def keypoint_map(body: FitBody, model: Any, convention: Any, regressor: Any = No
         plan = keypoints.plan(model, dst)
         rows = body.output_rows
     else:
+        if not hasattr(regressor, "num_vertices") or not hasattr(regressor, "matrix"):
+            raise TypeError(f"regressor: expected a smplcore.keypoints.Regressor, got {type(regressor).__name__}")
         if regressor.num_vertices != body.num_vertices:
             raise ShapeError(
                 f"regressor: made for {regressor.num_vertices} vertices, the model has {body.num_vertices}"
@@ -295,7 +298,7 @@ def fit_keypoints(
     betas, fit_betas, share_betas, init : as in :func:`fit_vertices`; ``share_betas`` for one person
         over a sequence.
     min_confidence : keypoints below it are ignored; the others are weighted by their confidence.
-    min_points : keypoints each body needs at least.
+    min_points : keypoints each body needs at least (1 or more).
     sigma : Geman–McClure scale (pixels).
     shape_prior, pose_prior : weights of Σ β² and Σ θ² (body pose; m² per unit).
     joint_limits, bending : weights (m² per rad²) of the anatomical joint limits and of the elbow/knee
@@ -317,7 +320,9 @@ def fit_keypoints(
     Returns
     -------
     FitResult with ``params``, ``reprojection_error`` (B,) mean pixels over the keypoints used,
-    ``converged`` (B,) and ``camera`` (the given one, or with the estimated focal length).
+    ``converged`` (B,) and ``camera`` (the given one, or with the estimated focal length). Bodies whose mean
+    reprojection error exceeds half their keypoints' spread are flagged not converged, with a warning; a fit
+    that would come out non-finite raises :class:`smplcore.fit.FitError` (never a NaN result).
     """
     if camera is None:
         raise ValueError(
@@ -327,11 +332,28 @@ def fit_keypoints(
     if not isinstance(camera, Camera):
         raise TypeError(f"camera: expected a smplcore.fit.Camera, got {type(camera).__name__}")
     body = FitBody.from_model(model)
+    weights_ = checks.options("weight", dict(
+        min_confidence=min_confidence, shape_prior=shape_prior, pose_prior=pose_prior, joint_limits=joint_limits,
+        bending=bending, gmm_weight=gmm_weight, vposer_weight=vposer_weight, focal_prior=focal_prior,
+        smoothness=smoothness,
+    ))  # fmt: skip
+    (min_confidence, shape_prior, pose_prior, joint_limits, bending, gmm_weight, vposer_weight, focal_prior,
+     smoothness) = weights_.values()  # fmt: skip
+    sigma, tol = checks.positive("sigma", sigma), checks.positive("tol", tol)
+    max_iter = checks.count("max_iter", max_iter, 0, 100_000)
+    min_points = checks.count("min_points", min_points, 1)
+    anneal = checks.factors("anneal", anneal)
+    init = checks.init_params(init, body)
+    if gmm is not None and not isinstance(gmm, (str, os.PathLike, GMMPrior)):
+        raise TypeError(f"gmm: expected a path or a smplcore.fit.GMMPrior, got {type(gmm).__name__}")
+    if vposer is not None and not isinstance(vposer, (str, os.PathLike, VPoserPrior)):
+        raise TypeError(f"vposer: expected a path or a smplcore.fit.VPoserPrior, got {type(vposer).__name__}")
     if not {"global_orient", "body_pose"} <= {b.name for b in body.blocks}:
         raise ValueError(f"model: fit_keypoints fits bodies; a {body.model_type} model has no body_pose")
     kmap = keypoint_map(body, model, convention, regressor)
     kp = _check_keypoints(keypoints, len(kmap.names), str(convention))
     batch = len(kp)
+    checks.nonempty_batch("keypoints", batch)
     targets, conf = kp[..., :2], kp[..., 2]
     weights = np.where((conf >= min_confidence) & kmap.available, conf, 0.0)
     counts = (weights > 0).sum(1)
@@ -383,10 +405,12 @@ def fit_keypoints(
     dist = reprojection(body, terms, state)
     visible = weights > 0
     error = (dist * visible).sum(1) / visible.sum(1)
-    return FitResult(
+    converged = checks.flag_gross(converged, error, checks.spread_of(targets, visible), "fit_keypoints", "px")
+    result = FitResult(
         params=state_to_params(body, model, state),
         reprojection_error=error,
         converged=converged,
         iterations=iterations,
         camera=camera,
     )
+    return checks.finite_result(result, "fit_keypoints")

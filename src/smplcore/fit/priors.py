@@ -136,9 +136,12 @@ class GMMPrior:
     @classmethod
     def from_arrays(cls, means: np.ndarray, covars: np.ndarray, weights: np.ndarray, source: str = "<arrays>"):
         """A prior from (C, D) means, (C, D, D) covariances and (C,) weights."""
-        means = np.asarray(means, np.float64)
-        covars = np.asarray(covars, np.float64)
-        weights = np.asarray(weights, np.float64).reshape(-1)
+        try:
+            means = np.asarray(means, np.float64)
+            covars = np.asarray(covars, np.float64)
+            weights = np.asarray(weights, np.float64).reshape(-1)
+        except (TypeError, ValueError) as exc:
+            raise ModelFileError(source, f"means, covars, weights: expected arrays of numbers ({exc})") from exc
         c = len(weights)
         if c == 0 or means.ndim != 2 or means.shape[0] != c or covars.shape != (c, means.shape[1], means.shape[1]):
             raise ModelFileError(
@@ -178,6 +181,8 @@ class GMMPrior:
 
     def marginal(self, dim: int) -> GMMPrior:
         """The mixture of the first ``dim`` values (exact marginals of each Gaussian)."""
+        if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or dim < 1:
+            raise ValueError(f"dim: expected a positive number of pose values, got {dim!r}")
         if dim == self.dim:
             return self
         if dim > self.dim:

@@ -177,16 +177,28 @@ def _step(hess: np.ndarray, grad: np.ndarray, damping: np.ndarray, shared_cols: 
         diag[...] = saved
 
 
+# Bodies per block of the step's solves: the copies of their (b, P, P) matrices stay near 16 MB.
+_STEP_VALUES = 2_000_000
+
+
 def _damped_step(damped: np.ndarray, grad: np.ndarray, shared_cols: np.ndarray) -> np.ndarray:
+    batch, size = len(grad), max(1, _STEP_VALUES // max(1, damped.shape[-1] ** 2))
     if not shared_cols.any():
-        return -np.linalg.solve(damped, grad[..., None])[..., 0]
+        out = np.empty_like(grad)
+        for a in range(0, batch, size):
+            out[a : a + size] = -np.linalg.solve(damped[a : a + size], grad[a : a + size, :, None])[..., 0]
+        return out
     s, p = np.flatnonzero(shared_cols), np.flatnonzero(~shared_cols)
-    hpp, hps, hss = damped[:, p[:, None], p], damped[:, p[:, None], s], damped[:, s[:, None], s]
-    gp, gs = grad[:, p], grad[:, s]
-    sol = np.linalg.solve(hpp, np.concatenate([hps, gp[..., None]], axis=-1))  # Hpp⁻¹ [Hps, gp]
-    hinv_hps, hinv_gp = sol[..., :-1], sol[..., -1]
-    schur = np.sum(hss - np.swapaxes(hps, 1, 2) @ hinv_hps, axis=0)
-    rhs = np.sum(gs - np.einsum("bps,bp->bs", hps, hinv_gp), axis=0)
+    hinv_hps, hinv_gp = np.empty((batch, len(p), len(s))), np.empty((batch, len(p)))
+    schur, rhs = np.zeros((len(s), len(s))), np.zeros(len(s))
+    for a in range(0, batch, size):  # the Schur complement of the shared columns, block by block of bodies
+        d, g = damped[a : a + size], grad[a : a + size]
+        hpp, hps, hss = d[:, p[:, None], p], d[:, p[:, None], s], d[:, s[:, None], s]
+        gp, gs = g[:, p], g[:, s]
+        sol = np.linalg.solve(hpp, np.concatenate([hps, gp[..., None]], axis=-1))  # Hpp⁻¹ [Hps, gp]
+        hinv_hps[a : a + size], hinv_gp[a : a + size] = sol[..., :-1], sol[..., -1]
+        schur += np.sum(hss - np.swapaxes(hps, 1, 2) @ sol[..., :-1], axis=0)
+        rhs += np.sum(gs - np.einsum("bps,bp->bs", hps, sol[..., -1]), axis=0)
     ds = -np.linalg.solve(schur, rhs)
     dp = -(hinv_gp + hinv_hps @ ds)
     step = np.empty_like(grad)

@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 
 from smplcore.errors import ShapeError
+from smplcore.fit import checks
 from smplcore.fit.body import FitBody, pose_points
 from smplcore.fit.gauss_newton import refine
 from smplcore.fit.initialize import initialize
@@ -339,7 +340,14 @@ def fit_vertices(
     True
     """
     body = FitBody.from_model(model)
-    ids = np.arange(body.num_vertices) if vertex_ids is None else np.asarray(vertex_ids, np.int64).reshape(-1)
+    shape_prior, pose_prior = checks.options("weight", {"shape_prior": shape_prior, "pose_prior": pose_prior}).values()
+    tol = checks.positive("tol", tol)
+    max_iter, init_iterations = checks.options(
+        "iterations", {"max_iter": max_iter, "init_iterations": init_iterations}
+    ).values()
+    workers = checks.workers(workers)
+    init = checks.init_params(init, body)
+    ids = np.arange(body.num_vertices) if vertex_ids is None else _vertex_ids(vertex_ids)
     if ids.size and (ids.min() < 0 or ids.max() >= body.num_vertices):
         raise ValueError(f"vertex_ids: indices must be in [0, {body.num_vertices})")
     dtype = working_dtype(model)
@@ -349,6 +357,7 @@ def fit_vertices(
     if verts.ndim != 3 or verts.shape[1:] != (len(ids), 3):
         raise ShapeError(f"vertices: expected (B, {len(ids)}, 3), got {tuple(np.shape(vertices))}")
     batch = verts.shape[0]
+    checks.nonempty_batch("vertices", batch)
     id_parts, target_parts = [ids], [verts]
     w = [_weights(vertex_weights, "vertex_weights", batch, len(ids))]
     n_joints = 0
@@ -366,8 +375,9 @@ def fit_vertices(
         w.append(_weights(joint_weights, "joint_weights", batch, n_joints))
     point_ids, weights = np.concatenate(id_parts), np.concatenate(w, 1)
     targets = verts if len(target_parts) == 1 else np.concatenate(target_parts, 1)
-    if len(point_ids) < 3 or not np.all(weights.sum(1) > 0):
-        raise ValueError("vertices: need at least 3 points with positive weight per body")
+    if len(point_ids) < 3 or not np.all((weights > 0).sum(1) >= 3):
+        raise ValueError("vertices, vertex_weights: need at least 3 points with positive weight per body")
+    checks.check_scale("vertices", verts, _rest_vertices(body, ids), weights[:, : len(ids)] > 0)
     start = params_to_state(body, {**(init or {}), **({} if betas is None else {"betas": betas})}, batch)
     free, shared = coefficient_masks(body, fit_betas, fit_expression, share_betas)
     pose_w = body.pose_prior_weights(pose_prior)
@@ -396,17 +406,38 @@ def fit_vertices(
 
     if dist is None:
         kept = targets.copy()  # may share the caller's array, which may change before the errors are read
-        return FitResult(
-            params=state_to_params(body, model, state),
-            converged=converged,
-            iterations=iterations,
-            measure=lambda: errors(model_distances(model, body, state, point_ids, kept)),
+
+        def measure() -> tuple[np.ndarray, np.ndarray | None]:
+            out = errors(model_distances(model, body, state, point_ids, kept))
+            if not all(e is None or np.all(np.isfinite(e)) for e in out):
+                raise checks.FitError("fit_vertices: the fitted bodies' errors came out non-finite")
+            return out
+
+        result = FitResult(
+            params=state_to_params(body, model, state), converged=converged, iterations=iterations, measure=measure
         )
+        return checks.finite_result(result, "fit_vertices")
     vertex_error, joint_error = errors(dist)
-    return FitResult(
+    spread = checks.spread_of(verts, weights[:, : len(ids)] > 0)
+    converged = checks.flag_gross(converged, vertex_error, spread, "fit_vertices", "m")
+    result = FitResult(
         params=state_to_params(body, model, state),
         vertex_error=vertex_error,
         joint_error=joint_error,
         converged=converged,
         iterations=iterations,
     )
+    return checks.finite_result(result, "fit_vertices")
+
+
+def _vertex_ids(value: Any) -> np.ndarray:
+    """(n,) int64 vertex ids from integer-valued input; a TypeError naming ``vertex_ids`` otherwise."""
+    array = np.asarray(value.detach().cpu().numpy() if hasattr(value, "detach") else value)
+    if array.dtype.kind not in "iu" and not (array.dtype.kind == "f" and np.all(np.mod(array, 1) == 0)):
+        raise TypeError(f"vertex_ids: expected integer vertex indices, got {array.dtype} values")
+    return array.astype(np.int64).reshape(-1)
+
+
+def _rest_vertices(body: FitBody, ids: np.ndarray) -> np.ndarray:
+    """(n, 3) the rest body's vertices ``ids`` (the template)."""
+    return np.asarray(body.template, np.float64)[ids]

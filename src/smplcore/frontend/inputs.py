@@ -69,6 +69,22 @@ def rows(name: str, value: Any, batch: int, width: int, *, allow_narrower: bool 
             hint = " (PCA coefficients; use_pca=False for 45 axis-angle values)"
         elif name.endswith("hand_pose") and width == 45 and n < 45:
             hint = " (axis-angle; use_pca=True takes PCA coefficients)"
+        elif name == "body_pose" and (n, width) == (63, 69):
+            hint = (
+                "; 63 values are 21 body joints (SMPL+H / SMPL-X); this model has 23 (SMPL's, the last two the "
+                "hands): append 6 zeros, or use a model with 21 body joints (model_type='smplh' or 'smplx')"
+            )
+        elif name == "body_pose" and (n, width) == (69, 63):
+            hint = (
+                "; 69 values are SMPL's 23 body joints; this model has 21 (its hands are separate blocks): "
+                "body_pose=pose[:, :63] drops SMPL's two hand joints"
+            )
+        elif name in ("betas", "expression") and allow_narrower and n > width:
+            option = "num_betas" if name == "betas" else "num_expression_coeffs"
+            hint = (
+                f"; the model was made with {option}={width}: make it with {option}={n} (e.g. "
+                f"BodyModel(..., {option}={n})) if its file holds that many"
+            )
         raise ShapeError(
             f"{name}: expected shape {_layouts(width, allow_narrower, joints)}, got {tuple(value.shape)}{hint}"
         )

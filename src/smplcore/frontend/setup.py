@@ -39,6 +39,22 @@ SETUP_OPTIONS: dict[str, Any] = {
     "skinning": "lbs",
 }
 
+
+def hand_options_from_file(data: ModelData, given: Any) -> dict[str, Any]:
+    """``use_pca`` / ``flat_hand_mean`` for a file without hand PCA and mean hand pose (AMASS's SMPL+H / SMPL-X
+    ``.npz``), when the caller gave neither: axis-angle hands (``use_pca=False``; smplx's default, True,
+    cannot be read from such a file) with a flat mean (its hand poses are absolute). Otherwise nothing: the
+    options given, or smplx's defaults, apply (``use_pca=True`` on such a file is still a clear error)."""
+    spec = get_spec(data.model_type)
+    if not spec.hand_blocks or spec.model_type == "mano" or "use_pca" in given or "flat_hand_mean" in given:
+        return {}
+    sides = ("left", "right")
+    if all(getattr(data, f"hands_components_{s}", None) is None and getattr(data, f"hands_mean_{s}", None) is None
+           for s in sides):  # fmt: skip
+        return {"use_pca": False, "flat_hand_mean": True}
+    return {}
+
+
 #: The skinning methods of the ``skinning`` option: linear blend and dual-quaternion skinning.
 SKINNING_METHODS = ("lbs", "dqs")
 
@@ -154,8 +170,13 @@ class ModelSetup:
             )
             num_betas = data.num_betas
         shapedirs = np.asarray(data.shapedirs[:, :, :num_betas])
+        if isinstance(age, str):
+            if age == "kid":  # the kid offset is measured from the file's template, before a custom one (as smplx)
+                shapedirs, num_betas = _with_kid_component(data, shapedirs, kid_template_path), num_betas + 1
+            elif age != "adult":
+                raise ValueError(f"age: expected 'adult', 'kid' or years (the open model), got {age!r}")
         if v_template is not None:
-            v_template = np.asarray(v_template, dtype=np.float64)
+            v_template = _template_array(v_template)
             if v_template.shape != data.v_template.shape:
                 raise ShapeError(f"v_template: expected shape {data.v_template.shape}, got {v_template.shape}")
             data = data.replace(v_template=v_template)
@@ -163,10 +184,6 @@ class ModelSetup:
             from smplcore.io.open_ages import at_age
 
             data, shapedirs = at_age(data, age, shapedirs)
-        elif age == "kid":
-            shapedirs, num_betas = _with_kid_component(data, shapedirs, kid_template_path), num_betas + 1
-        elif age != "adult":
-            raise ValueError(f"age: expected 'adult', 'kid' or years (the open model), got {age!r}")
 
         exprdirs = np.zeros((data.num_vertices, 3, 0))
         if spec.has_expression:
@@ -316,20 +333,41 @@ def check_skinning(skinning: Any) -> str:
     return skinning
 
 
+def _template_array(value: Any) -> np.ndarray:
+    """The ``v_template`` option as a finite float64 array; errors name the option."""
+    if hasattr(value, "detach"):
+        value = value.detach().cpu().numpy()
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"v_template: expected a (V, 3) array of numbers, got {type(value).__name__}") from exc
+    if not np.all(np.isfinite(array)):
+        raise ValueError("v_template: holds NaN or infinite values")
+    return array
+
+
 def _regressor(joint_regressors: Any, data: ModelData) -> Any:
     """The ``joint_regressors`` option (convention -> regressor file, ``Regressor`` or ``"open"``) as one
     stacked :class:`smplcore.keypoints.Regressor` checked against the model's vertex count, or None."""
-    if not joint_regressors:
+    if joint_regressors is None or (isinstance(joint_regressors, (dict, list, tuple, str)) and not joint_regressors):
         return None
     from smplcore.keypoints import load_regressors
+
+    if not isinstance(joint_regressors, (dict, str, Path)) and not hasattr(joint_regressors, "matrix"):
+        raise TypeError(
+            "joint_regressors: expected {convention: regressor file or Regressor}, a Regressor or 'open', got "
+            f"{type(joint_regressors).__name__}"
+        )
 
     return load_regressors(joint_regressors, num_vertices=data.num_vertices)
 
 
 def _dmpl(dmpl_path: str | Path | None, data: ModelData) -> np.ndarray | None:
     """The ``dmpl_path`` option: (V, 3, n) DMPL blend shapes checked against the model's vertices, or None."""
-    if dmpl_path is None or str(dmpl_path) == "":
+    if dmpl_path is None or (isinstance(dmpl_path, str) and dmpl_path == ""):
         return None
+    if not isinstance(dmpl_path, (str, Path)):
+        raise TypeError(f"dmpl_path: expected the path of a DMPL .npz file, got {type(dmpl_path).__name__}")
     from smplcore.io.dmpl import load_dmpl
 
     return load_dmpl(dmpl_path, num_vertices=data.num_vertices)

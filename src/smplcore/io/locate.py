@@ -141,6 +141,12 @@ def locate_model_file(
     if ext not in EXTENSIONS:
         raise ValueError(f"ext: expected 'pkl' or 'npz', got {ext!r}")
     who = ("right" if is_rhand else "left") if spec.model_type == "mano" else str(gender).strip().lower()
+    if who not in ("neutral", "male", "female", "right", "left"):
+        meant = {"m": "male", "f": "female", "n": "neutral", "man": "male", "woman": "female"}.get(who)
+        raise ValueError(
+            f"gender: expected 'neutral', 'male' or 'female', got {gender!r}"
+            + (f" (did you mean {meant!r}?)" if meant else "")
+        )
     tried: list[tuple[Path, str]] = []
     for e in (ext, *(x for x in EXTENSIONS if x != ext)):
         places, found = _search(path, spec.model_type, who, e)

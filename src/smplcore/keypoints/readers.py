@@ -72,6 +72,8 @@ def _triples(path: Path, field: str, value: Any, count: int | None) -> np.ndarra
     if len(value) % 3:
         raise ModelFileError(path, f"expected 3 numbers per point, got {len(value)} numbers", key=field)
     out = np.asarray(value, dtype=np.float32).reshape(-1, 3)
+    if not np.all(np.isfinite(out)):
+        raise ModelFileError(path, "holds NaN or infinite numbers", key=field)
     if count is not None and out.shape[0] != count:
         raise ModelFileError(path, f"expected {count} points ({3 * count} numbers), got {out.shape[0]}", key=field)
     return out
@@ -82,7 +84,14 @@ def _triples(path: Path, field: str, value: Any, count: int | None) -> np.ndarra
 _OPENPOSE_BODIES = {25: "openpose25", 18: "openpose18", 135: "openpose135"}
 
 
+def _max_people(value: int | None) -> None:
+    if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 0):
+        raise ValueError(f"max_people: expected None or a non-negative integer, got {value!r}")
+
+
 def _openpose_files(source: str | Path | Sequence[str | Path]) -> list[Path]:
+    if not isinstance(source, (str, Path, list, tuple)):
+        raise TypeError(f"source: expected a folder, a file or a list of files, got {type(source).__name__}")
     if isinstance(source, (str, Path)):
         path = Path(source)
         if path.is_dir():
@@ -116,6 +125,7 @@ def read_openpose(
     KeypointArray with points (F, P, K, 3); convention ``openpose25`` (or ``openpose18`` /
     ``openpose135`` by the body's size), ``openpose137`` for BODY_25 with hands and face, else None.
     """
+    _max_people(max_people)
     files = _openpose_files(source)
     body_k: int | None = None
     frames: list[list[np.ndarray]] = []
@@ -199,6 +209,7 @@ def read_coco(path: str | Path, *, max_people: int | None = None) -> KeypointArr
     KeypointArray with points (F, P, K, 3): x, y and COCO's visibility (0 not labelled, 1 labelled
     but hidden, 2 visible); convention ``coco17`` / ``coco_wholebody133`` (None for other lists).
     """
+    _max_people(max_people)
     path = Path(path)
     doc = _load_json(path)
     if not isinstance(doc, dict) or not isinstance(doc.get("annotations"), list):
@@ -215,6 +226,9 @@ def read_coco(path: str | Path, *, max_people: int | None = None) -> KeypointArr
             raise ModelFileError(path, "expected an object", key=where)
         if "image_id" not in ann:
             raise ModelFileError(path, "missing", key=f"{where}.image_id")
+        if not isinstance(ann["image_id"], (int, str)) or isinstance(ann["image_id"], bool):
+            got = repr(ann["image_id"])[:40]
+            raise ModelFileError(path, f"expected a number or a string, got {got}", key=f"{where}.image_id")
         if "keypoints" not in ann:
             raise ModelFileError(path, "missing (not a keypoint annotation)", key=f"{where}.keypoints")
         if wholebody:
@@ -234,6 +248,9 @@ def read_coco(path: str | Path, *, max_people: int | None = None) -> KeypointArr
     images = doc.get("images")
     if isinstance(images, list) and all(isinstance(im, dict) and "id" in im for im in images):
         ids = [im["id"] for im in images]
+        for i, k in enumerate(ids):
+            if not isinstance(k, (int, str)) or isinstance(k, bool):
+                raise ModelFileError(path, f"expected a number or a string, got {repr(k)[:40]}", key=f"images[{i}].id")
         unknown = [k for k in by_image if k not in set(ids)]
         if unknown:
             raise ModelFileError(

@@ -157,7 +157,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="frames per forward call (default: 1024 with numpy, 4096 with torch)",
     )
     r.add_argument("--overwrite", action="store_true", help="recompute outputs that exist")
-    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--quiet", "--no-progress", dest="quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run_process)
 
 

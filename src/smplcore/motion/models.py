@@ -188,7 +188,7 @@ class Evaluator:
         from smplcore.model.params import fit_width  # the one coefficient rule
 
         model = loaded.model
-        params = motion.model_params(model.model_type, model.skeleton_joint_names)
+        params = motion.model_params(model.model_type, model.skeleton_joint_names, model.num_betas)
         params["betas"] = fit_width("betas", params["betas"], model.num_betas)
         if "expression" in params:
             params["expression"] = fit_width("expression", params["expression"], model.num_expression_coeffs)

@@ -49,8 +49,9 @@ def warn_open_model_betas(motion_type: str, *, stacklevel: int = 2, key: str = "
 
 
 # Full-pose width (values per frame) of each model type.
-POSE_WIDTH = {"smpl": 72, "smplh": 156, "smplx": 165, "mano": 48, "flame": 15}
-_TYPE_BY_WIDTH = {v: k for k, v in POSE_WIDTH.items()}
+# "open": the open model in SMPL's layout (a fit of it records it, so that its betas are read as its own)
+POSE_WIDTH = {"open": 72, "smpl": 72, "smplh": 156, "smplx": 165, "mano": 48, "flame": 15}
+_TYPE_BY_WIDTH = {v: k for k, v in POSE_WIDTH.items() if k != "open"}  # 72 values: SMPL
 
 
 @dataclass(frozen=True)
@@ -63,7 +64,8 @@ class Motion:
     trans : (T, 3) root translation per frame (metres).
     betas : (S,) shape coefficients.
     fps : frames per second.
-    model_type : ``smplh``, ``smplx`` or ``smpl`` (the layout of ``poses``).
+    model_type : ``smplh``, ``smplx``, ``smpl`` or ``open`` (the layout of ``poses``; ``open``: SMPL's layout,
+        the open model's betas).
     gender : ``neutral``, ``male`` or ``female``.
     expression : (T, E) expression coefficients, or None.
     dmpls : (T, 8) soft-tissue coefficients (AMASS SMPL+H), kept but not used by the body models.
@@ -84,9 +86,11 @@ class Motion:
         poses = np.asarray(self.poses)
         trans = np.asarray(self.trans)
         if poses.ndim != 2 or poses.shape[1] != POSE_WIDTH.get(self.model_type, -1):
+            other = _TYPE_BY_WIDTH.get(poses.shape[1]) if poses.ndim == 2 else None
+            hint = f"; {poses.shape[1]} values per frame are a {other!r} motion: model_type={other!r}" if other else ""
             raise ShapeError(
                 f"poses: expected shape (T, {POSE_WIDTH.get(self.model_type, '3 J')}) for a "
-                f"{self.model_type!r} motion, got {poses.shape}"
+                f"{self.model_type!r} motion, got {poses.shape}{hint}"
             )
         if trans.shape != (poses.shape[0], 3):
             raise ShapeError(f"trans: expected shape ({poses.shape[0]}, 3) to match poses, got {trans.shape}")
@@ -149,16 +153,20 @@ class Motion:
             dmpls=linear(self.dmpls),
         )
 
-    def model_params(self, model_type: str, joint_names: list[str] | None = None) -> dict[str, np.ndarray]:
+    def model_params(
+        self, model_type: str, joint_names: list[str] | None = None, num_betas: int | None = None
+    ) -> dict[str, np.ndarray]:
         """Keyword arguments for a model of ``model_type``: its pose blocks, ``transl`` and ``betas``.
 
         The full pose is carried over joint by joint by name, so a SMPL+H motion drives SMPL, the
         open model or SMPL-X (joints the source lacks stay at zero rotation). The betas are carried
         over as they are: for the open model, whose betas mean something else, a
-        :class:`ShapeSpaceWarning` says so (once per process) when they are not zero.
+        :class:`ShapeSpaceWarning` says so (once per process) when they are not zero — those of them the model
+        takes: ``num_betas``, the model's count (None: all; 0: none, no warning).
         """
         target = get_spec(model_type)
-        if target.model_type == "open" and self.model_type != "open" and np.any(np.asarray(self.betas) != 0):
+        used = np.asarray(self.betas)[:num_betas]
+        if target.model_type == "open" and self.model_type != "open" and np.any(used != 0):
             warn_open_model_betas(self.model_type, stacklevel=2)
         names = list(joint_names or target.joint_names)
         source_names = list(get_spec(self.model_type).joint_names)

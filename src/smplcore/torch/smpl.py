@@ -19,6 +19,7 @@ from smplcore.family import names as family_names
 from smplcore.family.specs import SMPL as SMPL_SPEC
 from smplcore.family.specs import FamilySpec
 from smplcore.frontend import SETUP_OPTIONS, ModelSetup, evaluate
+from smplcore.frontend.setup import hand_options_from_file
 from smplcore.io.model_data import ModelData
 from smplcore.model.rig import Rig, rig_from_setup
 from smplcore.torch.arrays import ModuleArrays
@@ -34,11 +35,23 @@ __all__ = ["SMPL", "VertexJointSelector"]
 
 
 class VertexJointSelector(nn.Module):
-    """Holds smplx's ``extra_joints_idxs`` buffer: the vertices appended to the joints."""
+    """smplx's ``vertex_joint_selector``: holds the ``extra_joints_idxs`` buffer (the vertices appended to the
+    joints) and appends them: ``selector(vertices, joints)`` is (B, J + n, 3)."""
+
+    extra_joints_idxs: torch.Tensor
 
     def __init__(self, ids: list[int]) -> None:
         super().__init__()
         self.register_buffer("extra_joints_idxs", torch.tensor(ids, dtype=torch.long))
+
+    def forward(self, vertices: torch.Tensor, joints: torch.Tensor) -> torch.Tensor:
+        """(B, J + n, 3): (B, J, 3) ``joints`` followed by the n selected vertices of (B, V, 3) ``vertices``."""
+        if vertices.ndim != 3 or joints.ndim != 3 or vertices.shape[0] != joints.shape[0]:
+            raise ShapeError(
+                f"vertices, joints: expected (B, V, 3) and (B, J, 3), got {tuple(vertices.shape)} and "
+                f"{tuple(joints.shape)}"
+            )
+        return torch.cat([joints, vertices.index_select(1, self.extra_joints_idxs)], dim=1)
 
 
 class SMPL(nn.Module):
@@ -107,6 +120,7 @@ class SMPL(nn.Module):
             data = attach_uv(data, uv_path)
         if self.LAYER and "use_pca" not in setup_opts and not _has_hand_pca(data):
             setup_opts["use_pca"] = False  # a Layer never reads PCA hands; smplx still registers the bases
+        setup_opts.update(hand_options_from_file(data, setup_opts))  # AMASS's .npz: no hand PCA, no mean
         self.setup = setup = ModelSetup.build(data, owner=name, **setup_opts)
         self.kernel = check_kernel(kernel)
         self.skinning = setup.skinning  # "lbs" or "dqs" (the skinning option)
@@ -122,6 +136,7 @@ class SMPL(nn.Module):
                 setup.num_pca_comps,
                 setup.flat_hand_mean,
             )
+            self._set_numpy_hand_components(data, int(setup_opts.get("num_pca_comps", SETUP_OPTIONS["num_pca_comps"])))
         if spec.landmarks:
             self.use_face_contour = setup.use_face_contour
         self.faces = np.asarray(data.faces).astype(data.faces_dtype)
@@ -141,12 +156,10 @@ class SMPL(nn.Module):
         def as_float(a: Any) -> torch.Tensor:
             return torch.tensor(np.asarray(a), dtype=dtype)
 
-        self.register_buffer("faces_tensor", torch.tensor(np.asarray(d.faces), dtype=torch.long))
+        # smplx's order of registration (named_buffers(), state_dict()): the SMPL arrays, the hands, then for
+        # FLAME the expression basis before the landmarks, for SMPL-X after them
         self.register_buffer("shapedirs", as_float(setup.shapedirs))
-        if self.SPEC.has_expression:
-            self.register_buffer("expr_dirs", as_float(setup.exprdirs))
-        if setup.dmpldirs is not None:  # dmpl_path= only (human_body_prior's name): smplx's state_dict otherwise
-            self.register_buffer("dmpldirs", as_float(setup.dmpldirs))
+        self.register_buffer("faces_tensor", torch.tensor(np.asarray(d.faces), dtype=torch.long))
         self.register_buffer("v_template", as_float(d.v_template))
         self.register_buffer("J_regressor", as_float(d.J_regressor))
         num_posedirs = 9 * (d.num_joints - 1)
@@ -158,6 +171,8 @@ class SMPL(nn.Module):
         self.register_buffer("posedirs", as_float(posedirs))
         self.register_buffer("parents", torch.tensor(np.asarray(d.parents), dtype=torch.long))
         self.register_buffer("lbs_weights", as_float(d.weights))
+        if setup.dmpldirs is not None:  # dmpl_path= only (human_body_prior's name): smplx's state_dict otherwise
+            self.register_buffer("dmpldirs", as_float(setup.dmpldirs))
         extra = (
             list(family_names.VERTEX_IDS_MANO.values())
             if self.SPEC.model_type == "mano"
@@ -170,6 +185,9 @@ class SMPL(nn.Module):
             self.register_buffer(self.hand_buffer(block, "mean"), as_float(mean))
         if setup.hand_means:
             self.register_buffer("pose_mean", as_float(setup.pose_mean))
+        expression_first = self.SPEC.has_expression and not self.SPEC.hand_blocks  # FLAME
+        if expression_first:
+            self.register_buffer("expr_dirs", as_float(setup.exprdirs))
         if self.SPEC.landmarks:
             self.register_buffer("lmk_faces_idx", torch.tensor(d.lmk_faces_idx, dtype=torch.long))
             self.register_buffer("lmk_bary_coords", as_float(d.lmk_bary_coords))
@@ -177,11 +195,24 @@ class SMPL(nn.Module):
                 self.register_buffer("dynamic_lmk_faces_idx", torch.tensor(d.dynamic_lmk_faces_idx, dtype=torch.long))
                 self.register_buffer("dynamic_lmk_bary_coords", as_float(d.dynamic_lmk_bary_coords))
                 self.register_buffer("neck_kin_chain", torch.as_tensor(setup.neck_chain, dtype=torch.long))
+        if self.SPEC.has_expression and not expression_first:
+            self.register_buffer("expr_dirs", as_float(setup.exprdirs))
         if setup.regressor is not None:  # joint_regressors: not smplx's, so not in the state_dict
             self.register_buffer(
                 "_regressor_ids", torch.as_tensor(setup.regressor.vertex_ids, dtype=torch.long), persistent=False
             )
             self.register_buffer("_regressor_weights", as_float(setup.regressor.weights), persistent=False)
+
+    def _set_numpy_hand_components(self, data: ModelData, num_pca_comps: int) -> None:
+        """smplx's ``np_left_hand_components`` / ``np_right_hand_components`` (``np_hand_components`` for MANO):
+        the file's first ``num_pca_comps`` PCA components of each hand, whether or not PCA is used."""
+        for block in self.SPEC.hand_blocks:
+            side = data.gender if block.hand == "self" else block.hand
+            comps = getattr(data, f"hands_components_{side}")
+            if comps is None:
+                continue
+            name = "np_hand_components" if block.hand == "self" else f"np_{side}_hand_components"
+            setattr(self, name, np.asarray(comps)[:num_pca_comps])
 
     @staticmethod
     def hand_buffer(block: str, kind: str) -> str:
@@ -251,18 +282,30 @@ class SMPL(nn.Module):
         return int(self.faces.shape[0])
 
     def extra_repr(self) -> str:
+        """smplx's lines: gender, joints, betas; then hand PCA, expression and face contour as its class has them."""
         lines = [
             f"Gender: {str(self.gender).upper()}",
             f"Number of joints: {self.J_regressor.shape[0]}",
             f"Betas: {self.num_betas}",
         ]
-        if self.SPEC.has_expression:
-            lines.append(f"Number of expression coefficients: {self.num_expression_coeffs}")
         if self.SPEC.hand_blocks:
             if self.use_pca:
                 lines.append(f"Number of PCA components: {self.num_pca_comps}")
             lines.append(f"Flat hand mean: {self.flat_hand_mean}")
+        if self.SPEC.has_expression:
+            lines.append(f"Number of Expression Coefficients: {self.num_expression_coeffs}")
+            if not self.SPEC.hand_blocks:  # FLAME
+                lines.append(f"Use face contour: {self.use_face_contour}")
         return "\n".join(lines)
+
+    def create_mean_pose(self, data_struct: Any = None, flat_hand_mean: bool = False) -> Any:
+        """The mean pose added to the full pose, as smplx returns it (``data_struct`` and ``flat_hand_mean``
+        are ignored, as in smplx: the hand means chosen at construction are used): None for models
+        without hands, a tensor for SMPL+H and MANO, a NumPy array for SMPL-X."""
+        if not self.SPEC.hand_blocks:
+            return None
+        mean = torch.as_tensor(self.setup.pose_mean, dtype=self.dtype)
+        return mean.numpy() if self.SPEC.model_type == "smplx" else mean
 
     @torch.no_grad()
     def reset_params(self, **params_dict: Any) -> None:
@@ -285,7 +328,11 @@ class SMPL(nn.Module):
         if betas.ndim == 1:
             betas = betas[None]
         if betas.shape[-1] > self.num_betas:
-            raise ShapeError(f"betas: expected shape (B, <={self.num_betas}), got {tuple(betas.shape)}")
+            raise ShapeError(
+                f"betas: expected shape (B, <={self.num_betas}), got {tuple(betas.shape)}; the model was made with "
+                f"num_betas={self.num_betas}: make it with num_betas={betas.shape[-1]} (e.g. "
+                f"smplcore.create(..., num_betas={betas.shape[-1]})) if its file holds that many"
+            )
         return reference.shape_blend(self.v_template, self.shapedirs[:, :, : betas.shape[-1]], betas)
 
     # -- forward -----------------------------------------------------------------------------------

@@ -101,7 +101,7 @@ class Track:
         motion = source.bvh.to_motion(model) if source.bvh is not None else source.motion
         self.fps = float(source.fps or 30.0)
         if isinstance(motion, Motion):
-            params = motion.model_params(model.model_type, model.skeleton_joint_names)
+            params = motion.model_params(model.model_type, model.skeleton_joint_names, model.num_betas)
         elif source.params is not None:
             params = {k: np.asarray(v, dtype=np.float64) for k, v in source.params.items() if not isinstance(v, str)}
         else:

@@ -13,8 +13,11 @@ Examples::
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 import time
+import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 from smplcore.view._deps import MissingDependencyError
@@ -80,7 +83,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     render.add_argument("--fit-over", type=Path, default=None, metavar="KEYPOINTS", help="target keypoints to draw")
     render.add_argument("--batch", type=int, default=32, help="frames posed per model call (default: %(default)s)")
     _model_options(render)
-    render.add_argument("--no-progress", action="store_true", help="no progress bar")
+    render.add_argument("--no-progress", "--quiet", dest="no_progress", action="store_true", help="no progress bar")
     render.set_defaults(run=run_render)
 
 
@@ -89,6 +92,35 @@ def _missing(command: str, exc: MissingDependencyError) -> int:
     return 2
 
 
+def _one_line_warnings(command: str) -> Callable[[Callable[..., int]], Callable[..., int]]:
+    """A command whose warnings about the inputs (another shape space, coefficients dropped: UserWarnings) are
+    printed as one line ``smplcore COMMAND: warning: ...``, not as Python's two pointing into smplcore."""
+
+    def decorate(run: Callable[..., int]) -> Callable[..., int]:
+        @functools.wraps(run)
+        def wrapper(args: argparse.Namespace) -> int:
+            with warnings.catch_warnings():
+                show = warnings.showwarning
+
+                def showwarning(message, category, filename, lineno, file=None, line=None):  # noqa: ANN001, ANN202
+                    if issubclass(category, UserWarning):
+                        print(f"smplcore {command}: warning: {message}", file=sys.stderr, flush=True)
+                    else:
+                        show(message, category, filename, lineno, file, line)
+
+                warnings.showwarning = showwarning
+                return run(args)
+
+        return wrapper
+
+    return decorate
+
+
+def _bodies(count: int) -> str:
+    return f"{count} body" if count == 1 else f"{count} bodies"
+
+
+@_one_line_warnings("view")
 def run_view(args: argparse.Namespace) -> int:
     from smplcore.view.viewer import Viewer
 
@@ -107,7 +139,7 @@ def run_view(args: argparse.Namespace) -> int:
     except MissingDependencyError as exc:
         return _missing("view", exc)
     url = viewer.url if args.host in ("127.0.0.1", "localhost") else viewer.url.replace("127.0.0.1", args.host)
-    print(f"smplcore view: serving {len(viewer.bodies)} body(ies) at {url}", flush=True)
+    print(f"smplcore view: serving {_bodies(len(viewer.bodies))} at {url}", flush=True)
     print("  (open this address: it holds this session's token; other pages and web origins are refused)", flush=True)
     try:
         while True:
@@ -142,6 +174,7 @@ class _Bar:
             self.bar.close()
 
 
+@_one_line_warnings("render")
 def run_render(args: argparse.Namespace) -> int:
     from smplcore.view.video import render_video
 

@@ -187,6 +187,12 @@ class Viewer:
     def _color(self, index: int) -> tuple[int, int, int]:
         return PALETTE[index % len(PALETTE)]
 
+    def _mesh_opacity(self, index: int) -> float | None:
+        """Translucent when what is inside must show through: the bones, or the target keypoints (body 0),
+        which mostly lie inside the body."""
+        inside = self.show_skeleton or (index == 0 and self.keypoints is not None)
+        return 0.45 if inside else None
+
     def _add_body_nodes(self, index: int) -> None:
         scene = self.server.scene
         body = self.bodies[index]
@@ -198,7 +204,7 @@ class Viewer:
             verts,
             body.faces,
             color=self._color(index),
-            opacity=0.45 if self.show_skeleton else None,
+            opacity=self._mesh_opacity(index),
         )
         parents = body.model.parents
         nodes["bones"] = np.array([(j, p) for j, p in enumerate(parents) if p >= 0], dtype=np.int64).reshape(-1, 2)
@@ -309,8 +315,8 @@ class Viewer:
                 self.show_skeleton = bool(skeleton)
             if names is not None:
                 self.show_names = bool(names)
-            for nodes in self._nodes:
-                nodes["mesh"].opacity = 0.45 if self.show_skeleton else None  # the bones inside show through
+            for index, nodes in enumerate(self._nodes):
+                nodes["mesh"].opacity = self._mesh_opacity(index)
                 nodes["skeleton"].visible = self.show_skeleton
                 nodes["joints"].visible = self.show_skeleton
                 for label in nodes["names"]:

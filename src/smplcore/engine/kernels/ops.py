@@ -256,12 +256,17 @@ def forward(
     the numbers come from the operators, which read the current ones.
     """
     with_one, posed_joints, transforms = _skeleton(handle, arrays, coeffs, rotmats)
-    if translation is not None:
+    fold = translation is not None and arrays.weights_sum_to_one  # exact only then (BodyArrays)
+    if fold and translation is not None:
         transforms = torch.cat([transforms[..., :9], transforms[..., 9:] + translation[:, None]], dim=-1)
     feats = with_one
     if arrays.has_pose_correctives:
         feats = torch.cat([with_one, reference.pose_features(rotmats)], dim=1)
     if not gradients:
-        return _skin_blocked(handle, ids, feats, transforms), posed_joints
-    rest = _blend(handle, ids, feats).reshape(coeffs.shape[0], 3, -1)
-    return _skin(handle, ids, rest, transforms)[0], posed_joints
+        verts = _skin_blocked(handle, ids, feats, transforms)
+    else:
+        rest = _blend(handle, ids, feats).reshape(coeffs.shape[0], 3, -1)
+        verts = _skin(handle, ids, rest, transforms)[0]
+    if translation is not None and not fold:
+        verts = verts + translation[:, None]
+    return verts, posed_joints

@@ -192,9 +192,10 @@ def _pool_rounds(
                             futures.pop(future)
                     tick()
             except BaseException:
-                alive_w.close()  # the workers exit now (see _watch_parent)
-                for future in futures:
-                    future.cancel()
+                # The workers exit now (see _watch_parent), which breaks the pool: its manager thread then fails
+                # every pending future itself. Cancelling them first made it raise InvalidStateError: CANCELLED
+                # from its thread (Python 3.11) before the clean message of a Ctrl-C.
+                alive_w.close()
                 raise
         pending = []
         for task in broken:  # a worker died (killed, out of memory): retry its files once

@@ -92,7 +92,8 @@ def process_file(task: Task, state: WorkerState) -> dict[str, Any]:
             positions = np.arange(motion.num_frames, dtype=np.float64)
         if motion.num_frames == 0:
             raise ValueError("the sequence has no frames")
-        model_type = options.model_type or (motion.model_type if options.model_path else "open")
+        layout = "smpl" if motion.model_type == "open" else motion.model_type  # an open-model fit: SMPL's layout
+        model_type = options.model_type or (layout if options.model_path else "open")
         gender = pick_gender(motion.gender, options.gender)
         loaded = state.cache.get(model_type, gender)
         with warnings.catch_warnings():  # reported to the main process (which warns once) in the entry
@@ -198,6 +199,8 @@ def find_inputs(
             size = path.stat().st_size
         except OSError:
             size = 0
-        tasks.append(Task(str(path.resolve()), rel.as_posix(), str(output_dir / rel.with_suffix(options.suffix)), size))
+        # absolute, symlinks kept: messages name the path as typed, not a link's target
+        source = os.path.abspath(path)
+        tasks.append(Task(source, rel.as_posix(), str(output_dir / rel.with_suffix(options.suffix)), size))
     tasks.sort(key=lambda t: (-t.size, t.relative))
     return tasks
