@@ -159,9 +159,8 @@ def test_a_bad_prior_file_is_one_clear_error_and_a_fifo_input_is_refused(joints_
     inputs, names = _subset(joints_inputs, tmp_path, 1)
     gmm = tmp_path / "gmm_08.pkl"
     gmm.write_bytes(nested_pickle())
-    start = time.monotonic()
+    # the nesting check refuses it (the 380-byte file describes 2**37 list entries: walking them would not end)
     assert main(["fit", str(inputs), "-o", str(tmp_path / "o"), "--joint-names", names, "--gmm", str(gmm)]) == 2
-    assert time.monotonic() - start < 60  # it ends (the 380-byte file describes 2**37 list entries)
     assert f"{gmm}: holds nested lists" in capsys.readouterr().err
     fifo = tmp_path / "joints.npy"
     os.mkfifo(fifo)
