@@ -14,7 +14,7 @@ from smplcore.frontend.inputs import rows
 from smplcore.frontend.setup import hand_options_from_file
 from smplcore.io.locate import read_model
 from smplcore.io.model_data import ModelData
-from smplcore.model.rig import Rig, rig_from_setup
+from smplcore.model.rig import Rig, rig_of
 
 
 @dataclass
@@ -111,10 +111,7 @@ class BodyModel:
     @property
     def rig(self) -> Rig:
         """The model's public facts with its options applied (:class:`smplcore.model.Rig`), built on first use."""
-        rig = self.__dict__.get("_rig")
-        if rig is None:
-            rig = self.__dict__["_rig"] = rig_from_setup(self.setup)
-        return rig
+        return rig_of(self.setup)
 
     @property
     def model_data(self) -> ModelData:

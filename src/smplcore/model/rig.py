@@ -31,7 +31,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from smplcore.frontend.setup import ModelSetup
 
-__all__ = ["PoseBlock", "Rig", "UVMap", "rig_from_setup"]
+__all__ = ["PoseBlock", "Rig", "UVMap", "rig_from_setup", "rig_of"]
 
 
 @dataclass(frozen=True)
@@ -283,6 +283,15 @@ def mirror_of(names: tuple[str, ...]) -> np.ndarray:
             if name.startswith(a) and b + name[len(a) :] in index:
                 out[i] = index[b + name[len(a) :]]
     return out
+
+
+def rig_of(setup: ModelSetup) -> Rig:
+    """The :class:`Rig` of a front end's setup, built on first use and kept in the setup's cache (a change to the
+    setup's arrays drops it: ``setup._cache.pop("rig")``), so every front end shares one rule."""
+    rig = setup._cache.get("rig")
+    if rig is None:
+        rig = setup._cache["rig"] = rig_from_setup(setup)
+    return rig
 
 
 def rig_from_setup(setup: ModelSetup, *, shapedirs: np.ndarray | None = None) -> Rig:

@@ -115,7 +115,7 @@ class MANO(SMPL):
         flipped = self.setup.shapedirs.copy()
         flipped[:, 0, :] *= -1
         self.setup.shapedirs = flipped  # the setup (and so the rig and fitting) matches the buffer
-        self.__dict__.pop("_rig", None)
+        self.setup._cache.pop("rig", None)
 
 
 class FLAME(SMPL):

@@ -21,7 +21,7 @@ from smplcore.family.specs import FamilySpec
 from smplcore.frontend import SETUP_OPTIONS, ModelSetup, evaluate
 from smplcore.frontend.setup import hand_options_from_file
 from smplcore.io.model_data import ModelData
-from smplcore.model.rig import Rig, rig_from_setup
+from smplcore.model.rig import Rig, rig_of
 from smplcore.torch.arrays import ModuleArrays
 from smplcore.torch.keywords import split_keywords, warn_unknown
 from smplcore.torch.outputs import (
@@ -242,10 +242,7 @@ class SMPL(nn.Module):
     @property
     def rig(self) -> Rig:
         """The model's public facts with its options applied (:class:`smplcore.model.Rig`), built on first use."""
-        rig = self.__dict__.get("_rig")
-        if rig is None:
-            rig = self.__dict__["_rig"] = rig_from_setup(self.setup)
-        return rig
+        return rig_of(self.setup)
 
     @property
     def model_data(self) -> ModelData:
