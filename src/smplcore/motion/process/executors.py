@@ -168,17 +168,21 @@ def _pool_rounds(
     alive, alive_w = lifeline
     while pending and not stopping():
         broken: list[Task] = []
-        with (
-            _single_threaded_blas(),
-            ProcessPoolExecutor(
+        with _single_threaded_blas():
+            pool = ProcessPoolExecutor(
                 max_workers=min(workers, len(pending)),
                 mp_context=context,
                 initializer=_init_worker,
                 initargs=(options, threads, alive),
-            ) as pool,
-        ):
-            futures = {pool.submit(_worker_run, task): task for task in pending}
+            )
             try:
+                futures: dict[Any, Task] = {}
+                for k, task in enumerate(pending):
+                    try:
+                        futures[pool.submit(_worker_run, task)] = task
+                    except (BrokenProcessPool, OSError):  # the workers died while the files were handed out
+                        broken.extend(pending[k:])
+                        break
                 while futures:
                     done, _ = wait(list(futures), timeout=0.5, return_when=FIRST_COMPLETED)
                     for future in done:
@@ -197,6 +201,8 @@ def _pool_rounds(
                 # from its thread (Python 3.11) before the clean message of a Ctrl-C.
                 alive_w.close()
                 raise
+            finally:
+                shut_down(pool)
         pending = []
         for task in broken:  # a worker died (killed, out of memory): retry its files once
             attempts[task.source] = attempts.get(task.source, 0) + 1
@@ -206,6 +212,18 @@ def _pool_rounds(
                 on_result(
                     {"input": task.relative, "output": None, "status": "skipped", "seconds": 0.0, "reason": WORKER_DIED}
                 )
+
+
+def shut_down(pool: Any) -> None:
+    """``pool.shutdown(wait=True)``, past a race of CPython 3.11 (gh-125451, bpo-39995): the manager thread of a
+    broken pool closes the wakeup pipe that ``shutdown`` writes to, which then raises ``OSError('handle is
+    closed')`` instead of waiting. The pipe is closed by then, so a second call passes it and joins the thread."""
+    try:
+        pool.shutdown(wait=True)
+    except OSError as exc:
+        if "handle is closed" not in str(exc):
+            raise
+        pool.shutdown(wait=True)
 
 
 def _run_ray(
