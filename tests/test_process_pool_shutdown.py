@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from smplcore.motion.process import executors
+from smplcore.jobs import executors
 
 
 class _RacingPool:

@@ -9,13 +9,10 @@ outputs are kept unless ``--overwrite``), ``--workers`` processes, bad inputs re
 from __future__ import annotations
 
 import argparse
-import contextlib
 import errno
 import json
-import signal
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
@@ -233,15 +230,31 @@ def fit_one(source: str, output: str, settings: Any) -> dict[str, Any]:
     return entry
 
 
-def _init_worker() -> None:
-    """A worker: one BLAS thread when threadpoolctl is installed (optional), and Ctrl-C left to the parent,
-    which stops the batch (a worker's own KeyboardInterrupt would only print a traceback)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+_SETTINGS: list[Any] = []
+
+
+def _remember(settings: Any) -> None:
+    """The run's settings, for :func:`_fit_item` (in this process: no other change)."""
+    _SETTINGS[:] = [settings]
+
+
+def _setup_worker(settings: Any) -> None:
+    """A worker process: the run's settings, and one BLAS thread when threadpoolctl is installed (optional)."""
+    _remember(settings)
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:
         return
     threadpool_limits(1)
+
+
+def _fit_item(item: tuple[str, str]) -> dict[str, Any]:
+    return fit_one(item[0], item[1], _SETTINGS[0])
+
+
+def _dead(item: tuple[str, str], reason: str) -> dict[str, Any]:
+    why = "its worker process died (out of memory? killed?)" if reason == "died" else reason
+    return {"input": item[0], "output": item[1], "status": "skipped", "reason": why}
 
 
 # Errors writing an output that every later output would meet too: the batch stops (finished outputs are kept).
@@ -289,22 +302,24 @@ def run(args: argparse.Namespace) -> int:
         else:
             todo.append((str(src), str(dst)))
     bar = _bar(len(todo), args.no_progress or len(todo) < 2)
+    from smplcore.jobs.executors import Job, remove_orphan_temporaries, run_inline, run_pool, run_ray, worker_context
+
+    job = Job(_fit_item, _dead, _setup_worker, (settings,))
+    stopping = lambda: any(e.get("fatal") for e in entries)  # noqa: E731 -- a full or read-only disk
+    tick = bar.update if bar is not None else lambda: None
     try:
         if args.ray is not None and todo:
-            _run_ray(todo, settings, args.ray, args.workers, entries, bar)
+            run_ray(todo, job, args.ray, args.workers, entries.append, tick, stopping)
         elif args.workers > 1 and len(todo) > 1:
-            _run_pool(todo, settings, args.workers, entries, bar)
+            run_pool(todo, job, args.workers, entries.append, tick, stopping, worker_context(["numpy", "smplcore.fit"]))
         else:
-            for s, d in todo:
-                entries.append(fit_one(s, d, settings))
-                if bar is not None:
-                    bar.update()
-                if entries[-1].get("fatal"):
-                    break
+            run_inline(todo, Job(_fit_item, _dead, _remember, (settings,)), entries.append, tick, stopping)
     except KeyboardInterrupt:
         if bar is not None:
             bar.close()
             bar = None
+        remove_orphan_temporaries({Path(d).parent for _, d in todo})
+        _late_outputs(todo, entries)
         done = sum(e["status"] == "done" for e in entries)
         print(f"smplcore fit: interrupted; {done} output(s) written in this run are kept "
               "(run the same command again to fit the rest)", file=sys.stderr)  # fmt: skip
@@ -326,89 +341,19 @@ def _output_folder(folder: Path) -> None:
         raise ValueError(f"-o/--output: cannot make the folder {folder}: {exc.strerror or exc}") from None
 
 
-def _run_pool(todo: list, settings: Any, workers: int, entries: list, bar: Any) -> None:
-    """The fits in ``workers`` processes; a worker that dies is one skipped input, a fatal write error (full or
-    read-only disk) stops the batch; outputs already written are kept."""
-    pool = ProcessPoolExecutor(workers, initializer=_init_worker)
-    pending = {pool.submit(fit_one, s, d, settings): (s, d) for s, d in todo}
-    try:
-        for fut in as_completed(list(pending)):
-            source, output = pending.pop(fut)
-            try:
-                entries.append(fut.result())
-            except Exception as exc:  # noqa: BLE001 -- a worker that died (BrokenProcessPool) loses one input
-                entries.append({"input": source, "output": output, "status": "skipped",
-                                "reason": f"the worker stopped: {type(exc).__name__}: {exc}"})  # fmt: skip
-            if bar is not None:
-                bar.update()
-            if entries[-1].get("fatal"):
-                break
-    finally:
-        if pending:  # stopped early (Ctrl-C, a full disk): running fits end now; their outputs were never renamed in
-            processes = list((getattr(pool, "_processes", None) or {}).values())
-            pool.shutdown(wait=False, cancel_futures=True)
-            for process in processes:
-                if process.is_alive():
-                    process.terminate()
-            for process in processes:
-                process.join(timeout=10)
-            _remove_partial({Path(d).parent for _, d in todo}, {p.pid for p in processes})
-            for source, output in pending.values():  # renamed into place before its result reached us
-                if Path(output).is_file():
-                    entries.append({"input": source, "output": output, "status": "done",
-                                    "note": "written just before the batch stopped"})  # fmt: skip
-        else:
-            pool.shutdown()
-
-
-def _run_ray(todo: list, settings: Any, address: str, workers: int, entries: list, bar: Any) -> None:
-    """The fits as Ray tasks (a failed task is one skipped input)."""
-    try:
-        import ray
-    except ImportError:
-        raise ValueError("--ray needs Ray, an optional dependency: pip install 'ray'") from None
-    started = not ray.is_initialized()
-    if started:
-        kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
-        if address in ("", "local"):
-            kwargs["num_cpus"] = max(1, workers)
-        else:
-            kwargs["address"] = address
-        ray.init(**kwargs)
-    try:
-        remote = ray.remote(num_cpus=1, max_retries=1)(fit_one)
-        pending = {remote.remote(s, d, settings): (s, d) for s, d in todo}
-        while pending:
-            done, _ = ray.wait(list(pending), num_returns=1)
-            for ref in done:
-                source, output = pending.pop(ref)
-                try:
-                    entries.append(ray.get(ref))
-                except Exception as exc:  # noqa: BLE001 -- one failed task is one skipped input
-                    entries.append({"input": source, "output": output, "status": "skipped",
-                                    "reason": f"Ray task failed: {type(exc).__name__}: {exc}"})  # fmt: skip
-                if bar is not None:
-                    bar.update()
-    finally:
-        if started:
-            ray.shutdown()
-
-
 def _rows(count: int, entry: dict[str, Any]) -> str:
     """``1 frame``, ``3 frames``, ``1 body`` (a COCO file: one row per person of each image)."""
     unit = entry.get("unit", "frames")
     return f"{count} { ({'frames': 'frame', 'bodies': 'body'}.get(unit, unit) if count == 1 else unit) }"
 
 
-def _remove_partial(folders: set[Path], pids: set[int | None]) -> None:
-    """Remove the temporary files of ended workers (their outputs were never renamed into place)."""
-    from smplcore.jobs import TMP_SUFFIX
-
-    for folder in folders:
-        for pid in pids:
-            for tmp in folder.glob(f".*.{pid}-*{TMP_SUFFIX}"):
-                with contextlib.suppress(OSError):
-                    tmp.unlink()
+def _late_outputs(todo: list[tuple[str, str]], entries: list[dict[str, Any]]) -> None:
+    """Entries for outputs renamed into place by a worker just before the batch stopped (no result reached us)."""
+    reported = {e["input"] for e in entries}
+    for source, output in todo:
+        if source not in reported and Path(output).is_file():
+            entries.append({"input": source, "output": output, "status": "done",
+                            "note": "written just before the batch stopped"})  # fmt: skip
 
 
 def _report(

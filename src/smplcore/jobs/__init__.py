@@ -1,7 +1,7 @@
-"""What batch jobs share (``smplcore process``, ``smplcore fit``): atomic output files and disk-full handling.
-
-The lock, manifest, executors and progress of a run are still in :mod:`smplcore.motion.process` (issue 24 moves
-them here)."""
+"""What batch jobs share (``smplcore process``, ``smplcore fit``): atomic output files, disk-full handling, and
+the executors (:mod:`smplcore.jobs.executors`: in this process, in worker processes with a lifeline, or as Ray
+tasks). The output-folder lock and the manifest format of ``smplcore process`` stay in
+:mod:`smplcore.motion.process` (``smplcore fit`` writes its own manifest)."""
 
 from smplcore.jobs.files import DISK_FULL_ERRNOS, TMP_SUFFIX, atomic_write, is_disk_full
 
