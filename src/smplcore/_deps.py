@@ -24,7 +24,7 @@ EXTRAS = {
     "threadpoolctl": "fit",
 }
 
-_DISPLAY = {"PIL": "Pillow", "OpenGL": "PyOpenGL", "pxr": "usd-core"}
+_DISPLAY = {"PIL": "Pillow", "OpenGL": "PyOpenGL", "pxr": "usd-core", "ray": "Ray"}
 
 #: the tested torch release (the README's install line)
 TORCH_INSTALL = "pip install torch==2.13.0"

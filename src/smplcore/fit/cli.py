@@ -302,7 +302,7 @@ def run(args: argparse.Namespace) -> int:
         else:
             todo.append((str(src), str(dst)))
     bar = _bar(len(todo), args.no_progress or len(todo) < 2)
-    from smplcore.jobs.executors import Job, remove_orphan_temporaries, run_inline, run_pool, run_ray, worker_context
+    from smplcore.jobs import Job, remove_orphan_temporaries, run_inline, run_pool, run_ray, worker_context
 
     job = Job(_fit_item, _dead, _setup_worker, (settings,))
     stopping = lambda: any(e.get("fatal") for e in entries)  # noqa: E731 -- a full or read-only disk

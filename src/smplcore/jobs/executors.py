@@ -2,7 +2,7 @@
 
 Shared by ``smplcore process`` (:mod:`smplcore.motion.process`) and ``smplcore fit`` (:mod:`smplcore.fit.cli`).
 A :class:`Job` is a top-level function ``work(item) -> row`` (a manifest entry; it never raises for a bad item),
-run after ``setup(*setup_args)`` in each worker (models are built there, once). Every executor reports each
+run after ``prepare(*prepare_args)`` in each worker (models are built there, once). Every executor reports each
 row through ``on_result(row)`` and calls ``tick()`` after each; ``stopping()`` true (a full disk, a fatal
 write error) starts no new item, while the items in hand finish.
 
@@ -47,14 +47,14 @@ class Job:
     ----------
     work : ``work(item) -> row``, a top-level (picklable) function; returns the item's manifest entry.
     dead : ``dead(item, reason) -> row``, the entry of an item whose worker died or whose Ray task failed.
-    setup : run once in each worker before its first item (None: nothing), a top-level function.
-    setup_args : the arguments of ``setup`` (picklable).
+    prepare : run once in each worker before its first item (None: nothing), a top-level function.
+    prepare_args : the arguments of ``prepare`` (picklable).
     """
 
     work: Callable[[Any], Row]
     dead: Callable[[Any, str], Row]
-    setup: Callable[..., None] | None = None
-    setup_args: tuple[Any, ...] = ()
+    prepare: Callable[..., None] | None = None
+    prepare_args: tuple[Any, ...] = ()
 
 
 def available_cpus() -> int:
@@ -83,8 +83,8 @@ def single_threaded_blas():
 
 def run_inline(items: Iterable[Any], job: Job, on_result: Callable, tick: Callable, stopping: Callable) -> None:
     """The items one after another in this process."""
-    if job.setup is not None:
-        job.setup(*job.setup_args)
+    if job.prepare is not None:
+        job.prepare(*job.prepare_args)
     for item in items:
         if stopping():
             return
@@ -104,8 +104,8 @@ def _watch_parent(alive: Any) -> None:
 def _init_worker(job: Job, alive: Any) -> None:
     threading.Thread(target=_watch_parent, args=(alive,), daemon=True).start()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C goes to the process group: the run decides
-    if job.setup is not None:
-        job.setup(*job.setup_args)
+    if job.prepare is not None:
+        job.prepare(*job.prepare_args)
 
 
 def shut_down(pool: Any) -> None:
@@ -212,15 +212,15 @@ def _pool_round(
     return broken
 
 
-_RAY_SETUPS: set[str] = set()
+_RAY_PREPARED: set[str] = set()
 
 
 def _ray_call(job: Job, item: Any) -> Row:
-    """A Ray task: the job's setup once per worker process (models kept between tasks), then the item."""
-    key = repr((job.setup, job.setup_args))
-    if job.setup is not None and key not in _RAY_SETUPS:
-        job.setup(*job.setup_args)
-        _RAY_SETUPS.add(key)
+    """A Ray task: the job's ``prepare`` once per worker process (models kept between tasks), then the item."""
+    key = repr((job.prepare, job.prepare_args))
+    if job.prepare is not None and key not in _RAY_PREPARED:
+        job.prepare(*job.prepare_args)
+        _RAY_PREPARED.add(key)
     return job.work(item)
 
 
@@ -235,9 +235,12 @@ def run_ray(
 ) -> int:
     """The items as Ray tasks on the cluster at ``address`` ("" / "local" / None: a local one of ``workers``
     CPUs); returns the cluster's CPU count. A failed task is one row from ``job.dead``."""
-    from smplcore._deps import require
+    try:
+        import ray
+    except ImportError:
+        from smplcore._deps import missing
 
-    ray = require("ray", "--ray", "ray")
+        raise missing("ray", "--ray", "ray") from None
     started = False
     if not ray.is_initialized():
         kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}

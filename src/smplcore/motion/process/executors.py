@@ -9,7 +9,7 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
-from smplcore.jobs.executors import Job, available_cpus, run_inline, run_pool, run_ray, worker_context
+from smplcore.jobs import Job, available_cpus, run_inline, run_pool, run_ray, worker_context
 from smplcore.motion.process.options import ProcessOptions
 from smplcore.motion.process.task import Task, WorkerState, process_file
 
