@@ -8,7 +8,9 @@ positive = forward), the median rotation angle of spine3 and of the neck, the me
 the share of frames whose pose leaves :data:`smplcore.fit.priors.JOINT_LIMITS` at the spine (any of spine1-3),
 the neck / head, the elbows and the knees. ``--render`` writes a side view of one fitted frame per clip.
 
-    python tools/measure_skeleton_maps.py [--mocap ../shared/data/mocap] [--frames 120] [--render out.png]
+    python tools/measure_skeleton_maps.py [--mocap ../shared/data/mocap] [--frames 120] [--render out.png] [--chosen]
+
+(``PYOPENGL_PLATFORM=egl`` for ``--render`` without a display; docs/skeletons_side.png is ``--chosen --render``.)
 """
 
 from __future__ import annotations
@@ -167,6 +169,7 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=120)
     ap.add_argument("--render", type=Path, default=None, help="write side views of the chosen maps here (PNG)")
     ap.add_argument("--only", default=None, help="comma-separated skeleton names")
+    ap.add_argument("--chosen", action="store_true", help="only the chosen maps (not the alternatives)")
     args = ap.parse_args()
     model = smplcore.BodyModel(model_type="open", dtype=np.float64)
     panels = []
@@ -183,6 +186,8 @@ def main() -> None:
                 continue
             clip = skeletons.read_bvh(path)
             for label, m in variants(name).items():
+                if args.chosen and label != "chosen":
+                    continue
                 targets = skeletons.to_model_targets(clip, m, model)
                 r, pick, s = measure(model, targets, args.frames)
                 own = own_spine_flex(clip.without_reference_pose(), name, pick)

@@ -6,17 +6,20 @@
   the FAIR capture, Human3.6M 17 / 32, MediaPipe, OpenPose BODY_25), found from a file's joint names.
 * :func:`to_model_targets`: a clip or points to fitting targets (metres, Y up, weights), the units detected
   from the skeleton's size (:mod:`~smplcore.skeletons.units`).
+* :func:`bone_lengths`: which target bones the model's shape space cannot reach, and by how much.
 """
 
 from smplcore.skeletons.bvh import MAX_BVH_BYTES, parse_bvh, read_bvh
 from smplcore.skeletons.clip import BVHClip
+from smplcore.skeletons.diagnostics import BoneReport, bone_lengths
 from smplcore.skeletons.mapping import SkeletonMap, Target
 from smplcore.skeletons.maps import MAPS, detect_skeleton, skeleton_for_points, skeleton_map, skeleton_names
-from smplcore.skeletons.targets import ModelTargets, points_units, to_metres, to_model_targets
+from smplcore.skeletons.targets import ModelTargets, leg_length, points_units, to_metres, to_model_targets
 from smplcore.skeletons.units import UNIT_SCALES, Units, parse_units
 
 __all__ = [
     "BVHClip",
+    "BoneReport",
     "MAPS",
     "MAX_BVH_BYTES",
     "ModelTargets",
@@ -24,7 +27,9 @@ __all__ = [
     "Target",
     "UNIT_SCALES",
     "Units",
+    "bone_lengths",
     "detect_skeleton",
+    "leg_length",
     "parse_bvh",
     "parse_units",
     "points_units",

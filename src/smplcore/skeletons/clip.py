@@ -62,8 +62,11 @@ class BVHClip:
 
     @property
     def fps(self) -> float:
-        """Frames per second, ``1 / frame_time``."""
-        return 1.0 / self.frame_time
+        """Frames per second, ``1 / frame_time``, rounded to the whole number within 0.01 % of it (a Frame Time
+        printed to a few digits: ``0.0083333`` is 120 fps; ``0.008342`` stays 119.875)."""
+        rate = 1.0 / self.frame_time
+        whole = round(rate)
+        return float(whole) if whole > 0 and abs(rate - whole) <= 1e-4 * rate else rate
 
     @property
     def root_positions(self) -> np.ndarray:

@@ -18,6 +18,7 @@ positive) and the rotation of spine3, against the alternatives (numbers: clip A 
   radius, ``Hand``, gives 14.7 / 23.5 mm).
 * ``cmu_max``: cgspeed's 3dsMax-friendly release (31 joints, CMU ASF units): as MotionBuilder's (131_02: 8.4 mm,
   spine3 25°; the neck on ``Neck``: 65°; the wrist on ``LeftWrist``: 10.8 mm).
+* ``smpl``: the SMPL family's own 22 body joints, as ``smplcore export`` writes a BVH (every joint, weight 1).
 * ``fair``: the AnimatedDrawings fair1 capture (27 joints, Z up, undocumented units: scaled to a 0.8 m leg).
   Limbs, neck, and the head moved 5 cm forward at a quarter weight (jumping / zombie: 10.7 / 9.4 mm, spine3
   18 / 15°); pinning Spine3 and the clavicles twists the chest (spine3 49° on jumping). ``wave_hello`` has other
@@ -36,6 +37,7 @@ points are down-weighted, points the model lacks are dropped):
 from __future__ import annotations
 
 from smplcore import keypoints
+from smplcore.family import names as family
 from smplcore.skeletons.mapping import SkeletonMap, Target, drop_rest, lr, sided
 
 # ---------------------------------------------------------------------------------------------------- BVH maps
@@ -166,6 +168,13 @@ def _fair() -> SkeletonMap:
                        dropped, "z", None, ("fair27", "animateddrawings"))  # fmt: skip
 
 
+def _smpl() -> SkeletonMap:
+    """The SMPL family's own skeleton, as ``smplcore export`` writes it to BVH (joints named after the model's)."""
+    targets = tuple(Target(n, (n,)) for n in family.SMPL_BODY)
+    return SkeletonMap("smpl", "the SMPL family's skeleton (smplcore's BVH export)", "bvh", family.SMPL_BODY,
+                       targets, (), "y", "m", ("smplcore", "smpl22"))  # fmt: skip
+
+
 # ------------------------------------------------------------------------------------------------ keypoint maps
 
 H36M32 = (
@@ -251,7 +260,8 @@ def _openpose25() -> SkeletonMap:
 # ------------------------------------------------------------------------------------------------ the registry
 
 MAPS: dict[str, SkeletonMap] = {
-    m.name: m for m in (_cmu_daz(), _cmu_mb(), _cmu_max(), _fair(), _h36m17(), _h36m32(), _mediapipe33(), _openpose25())
+    m.name: m
+    for m in (_cmu_daz(), _cmu_mb(), _cmu_max(), _fair(), _smpl(), _h36m17(), _h36m32(), _mediapipe33(), _openpose25())
 }
 
 

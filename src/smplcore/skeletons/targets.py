@@ -12,6 +12,7 @@ given), and returns what :func:`smplcore.fit.fit_joints` takes::
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -194,16 +195,27 @@ def _points_targets(source, skeleton, model, units, up, notes):
     lookup = {name: points[:, i] for i, name in enumerate(found.points)}
     named = _blend(found, lookup, "the points")
     leg, direction = _leg(named)
-    u = decide_units(leg, None if direction is None else snap_up(direction), units, up, "points")
+    u = decide_units(leg, None if direction is None else snap_up(direction), units, up, "points", points=True)
     notes.append(u.message)
     joints = np.stack([named[j] for j in found.joint_names], axis=1)
     return u.scale * joints @ u.axes.T, found, u
 
 
+def leg_length(joints: np.ndarray, joint_names: Any) -> float:
+    """The median leg length (hip → knee → ankle, mean of the sides) of (T, n, 3) points named by model joints;
+    NaN when they have no hip, knee and ankle of one side (or only NaN there)."""
+    arr = np.asarray(joints, np.float64)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN frames: NaN
+        return _leg({n: arr[:, i] for i, n in enumerate(joint_names)})[0]
+
+
 def points_units(joints: np.ndarray, joint_names: Any, units: Any = None, up: str | None = None) -> Units:
     """The :class:`Units` of (T, n, 3) points named by model joints (``left_hip``, ``left_knee``, ...), e.g. a
-    ``.npy`` of joints: the leg length says the unit, the ankles → hips direction the up axis."""
+    ``.npy`` of joints: the leg length says the unit, the ankles → hips direction the up axis. Raises ValueError
+    when no unit makes a person of them, or the leg cannot be measured (:func:`leg_length` is NaN)."""
     arr = np.asarray(joints, np.float64)
-    named = {n: arr[:, i] for i, n in enumerate(joint_names)}
-    leg, direction = _leg(named)
-    return decide_units(leg, None if direction is None else snap_up(direction), units, up, "joints")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        leg, direction = _leg({n: arr[:, i] for i, n in enumerate(joint_names)})
+    return decide_units(leg, None if direction is None else snap_up(direction), units, up, "joints", points=True)

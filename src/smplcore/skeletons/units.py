@@ -32,7 +32,11 @@ UNIT_NAMES = {
     "ft": "feet",
 }
 LEG_RANGE = (0.6, 1.05)
-"""Plausible hip → knee → ankle length in metres (about 1.25-2.2 m tall)."""
+"""Plausible hip → knee → ankle length in metres of a BVH skeleton (about 1.25-2.2 m tall)."""
+POINTS_UNITS = ("m", "cm", "mm")
+"""The units tried for 3D points (keypoints, ``.npy`` joints): a leg of 0.3-1.3 m in one of them (a child too)."""
+POINTS_LEG_RANGE = (0.3, 1.3)
+
 LEG_DEFAULT = 0.80
 """The leg length (m) an unknown unit is scaled to."""
 
@@ -115,10 +119,18 @@ def snap_up(direction: np.ndarray) -> str | None:
 
 
 def decide_units(
-    leg: float, up: str | None, units: str | float | None = None, up_given: str | None = None, what: str = "skeleton"
+    leg: float,
+    up: str | None,
+    units: str | float | None = None,
+    up_given: str | None = None,
+    what: str = "skeleton",
+    points: bool = False,
 ) -> Units:
     """The :class:`Units` of a skeleton whose leg measures ``leg`` source units and whose up axis looked like
-    ``up`` (None: not told), unless ``units`` / ``up_given`` say otherwise."""
+    ``up`` (None: not told), unless ``units`` / ``up_given`` say otherwise.
+
+    ``points=True`` (keypoints, ``.npy`` joints): only metres, centimetres and millimetres are tried, with a leg of
+    0.3-1.3 m, and a leg that fits none is an error asking for the units (no scale is guessed for points)."""
     axis = parse_up(up_given) if up_given is not None else (up or "y")
     up_text = (
         f"up axis {axis} (given)"
@@ -132,13 +144,21 @@ def decide_units(
         return Units(scale, name, axis, leg, False, f"units: {shown} (given){leg_m}; {up_text}")
     if not (np.isfinite(leg) and leg > 0):
         raise ValueError(f"units: the {what} has no measurable leg (hip, knee, ankle); give the units")
-    fits = [(k, s) for k, s in UNIT_SCALES.items() if LEG_RANGE[0] <= leg * s <= LEG_RANGE[1]]
+    names = POINTS_UNITS if points else tuple(UNIT_SCALES)
+    low, high = POINTS_LEG_RANGE if points else LEG_RANGE
+    told = "the leg, hip to ankle,"
+    fits = [(k, UNIT_SCALES[k]) for k in names if low <= leg * UNIT_SCALES[k] <= high]
     if fits:
         name, scale = fits[0]
         text = f"units: {UNIT_NAMES[name]} (detected: the leg, hip to ankle, is {leg:.4g} units = {leg * scale:.2f} m)"
         if name != "m":
             text += f"; converted to metres (x {scale:.6g})"
         return Units(scale, name, axis, leg, True, f"{text}; {up_text}")
+    if points:
+        raise ValueError(
+            f"units: {told.strip(',')} of the {what} is {leg:.4g} units: not a person's in {', '.join(names)} "
+            f"({low}-{high} m); give the units (--units: m, cm, mm, in, or metres per unit)"
+        )
     scale = LEG_DEFAULT / leg
     text = (
         f"units: unknown (the leg, hip to ankle, is {leg:.4g} units: no unit of {', '.join(UNIT_SCALES)} makes it "
