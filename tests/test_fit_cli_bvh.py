@@ -28,8 +28,12 @@ def motion(open_model):
     rng = np.random.default_rng(5)
     frames = 6
     pose = rng.normal(scale=0.15, size=(1, 69)) + np.linspace(0, 0.2, frames)[:, None]
-    return {"body_pose": pose, "global_orient": np.tile([[0.1, 0.4, 0.0]], (frames, 1)),
-            "transl": np.tile([[0.2, 0.9, -0.3]], (frames, 1)), "betas": np.tile(rng.normal(size=(1, 10)), (frames, 1))}  # fmt: skip
+    return {
+        "body_pose": pose,
+        "global_orient": np.tile([[0.1, 0.4, 0.0]], (frames, 1)),
+        "transl": np.tile([[0.2, 0.9, -0.3]], (frames, 1)),
+        "betas": np.tile(rng.normal(size=(1, 10)), (frames, 1)),
+    }
 
 
 def _bvh_cm(path: Path, model, params) -> Path:
@@ -90,9 +94,10 @@ def test_bad_options_exit_2_before_any_fit(tmp_path, open_model, motion, capsys,
 
 def test_a_bvh_of_an_unknown_skeleton_is_skipped_with_the_reason(tmp_path, capsys):
     path = tmp_path / "robot.bvh"
-    path.write_text("HIERARCHY\nROOT base\n{\nOFFSET 0 0 0\nCHANNELS 6 Xposition Yposition Zposition Zrotation "
-                    "Xrotation Yrotation\nJOINT arm\n{\nOFFSET 0 1 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n"
-                    "End Site\n{\nOFFSET 0 1 0\n}\n}\n}\nMOTION\nFrames: 1\nFrame Time: 0.1\n0 0 0 0 0 0 0 0 0\n")  # fmt: skip
+    header = "HIERARCHY\nROOT base\n{\nOFFSET 0 0 0\nCHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation "
+    header += "Yrotation\n"
+    arm = "JOINT arm\n{\nOFFSET 0 1 0\nCHANNELS 3 Zrotation Xrotation Yrotation\nEnd Site\n{\nOFFSET 0 1 0\n}\n}\n}\n"
+    path.write_text(header + arm + "MOTION\nFrames: 1\nFrame Time: 0.1\n0 0 0 0 0 0 0 0 0\n")
     assert main(["fit", str(path), "-o", str(tmp_path / "robot.npz")]) == 1
     err = capsys.readouterr().err
     assert "no known skeleton has the joints base, arm" in err and "--skeleton" in err
