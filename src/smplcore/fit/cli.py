@@ -92,7 +92,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     p.add_argument("--vposer", default=None, metavar="PATH", help="2D: VPoser v2 pose prior (V02_05/ or its .ckpt)")
     p.add_argument("--gmm", default=None, metavar="PATH", help="2D: SMPLify's gmm_08.pkl pose prior")
-    p.add_argument("--fps", type=_positive, default=30.0, help="frame rate written to the output (default 30)")
+    p.add_argument("--fps", type=_positive, default=30.0, help="output frame rate (default 30; a BVH: its own)")
     p.add_argument("--person", type=int, default=0, help="OpenPose: which person of each frame (default 0)")
     p.add_argument("--smoothness", type=float, default=1e-3, help="sequences: temporal smoothness weight")
     p.add_argument(
