@@ -159,7 +159,7 @@ def to_model_targets(
     if isinstance(source, BVHClip):
         found = detect_skeleton(source.point_names) if skeleton is None else skeleton_map(skeleton)
         if skeleton is None:
-            notes.append(f"skeleton: {found.name} ({found.title}), detected from the joint names")
+            notes.append(f"skeleton: {found.name}, {found.title}; detected from the joint names")
         if found.kind != "bvh":
             raise ValueError(f"skeleton: {found.name} is a keypoint skeleton; a BVH clip needs a BVH skeleton map")
         found = found if model is None else found.resolve(model)
@@ -186,7 +186,7 @@ def _points_targets(source, skeleton, model, units, up, notes):
         raise ShapeError(f"source: expected points of shape (T, K, 3) or (K, 3), got {np.shape(source)}")
     if skeleton is None:
         found = skeleton_for_points(points.shape[1])
-        notes.append(f"skeleton: {found.name} ({found.title}), the one with {points.shape[1]} points")
+        notes.append(f"skeleton: {found.name}, {found.title}; the one with {points.shape[1]} points")
     else:
         found = skeleton_map(skeleton)
     if found.kind == "bvh" or len(found.points) != points.shape[1]:
