@@ -20,7 +20,6 @@ EXTRAS = {
     "ray": "ray",
     "viser": "view",
     "imageio_ffmpeg": "view",
-    "bvhio": "view",
     "threadpoolctl": "fit",
 }
 
