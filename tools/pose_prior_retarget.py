@@ -25,8 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-# SCRATCH until smplcore.skeletons lands: the BVH reader.
-from _scratch_bvh import read_bvh, world_transforms
+from smplcore.skeletons import read_bvh
 
 # (model point, its parent point, how it moves: a role whose rotation carries it, or "dir:A:B" = the
 # direction from role A's joint to role B's). L/R roles are expanded per side.
@@ -122,16 +121,16 @@ class Motion:
 
 def clip_motion(path: Path, fps: float, drop_first: bool) -> Motion:
     """Read one clip and keep its frames at about ``fps`` (frame 0 dropped when it is a reference pose)."""
-    bvh = read_bvh(str(path))
-    family = family_of(bvh.names)
+    bvh = read_bvh(path)
+    family = family_of(list(bvh.joint_names))
     z_up, roles = FAMILIES[family]
-    index = {n: i for i, n in enumerate(bvh.names)}
+    index = {n: i for i, n in enumerate(bvh.joint_names)}
     missing = sorted({j for j in roles.values() if j not in index})
     if missing:
         raise ValueError(f"{path}: the {family} map names {missing}, absent from the file")
     step = max(1, int(round(1.0 / (bvh.frame_time * fps))))
-    frames = np.arange(1 if drop_first else 0, len(bvh.motion), step)
-    rot, pos = world_transforms(bvh, frames)
+    frames = np.arange(1 if drop_first else 0, bvh.num_frames, step)
+    rot, pos = bvh.frames(frames).world_transforms()
     if z_up:
         rot = Z_UP @ rot @ Z_UP.T
         pos = pos @ Z_UP.T
