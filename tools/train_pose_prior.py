@@ -12,7 +12,8 @@ Steps:
    there is one.
 2. Retarget (tools/pose_prior_retarget.py): the open model's rest skeleton (mean shape) is re-posed with the
    mocap's motion (limb directions, rigid-part rotations; the head, wrists and toes calibrated per performer:
-   each one's mean posture of these over all of their clips is taken as the model's rest one) and ``smplcore.fit.fit_joints`` finds the body pose reaching it.
+   each one's mean posture of these over all of their clips is taken as the model's rest one) and
+   ``smplcore.fit.fit_joints`` finds the body pose reaching it.
 3. Split by performer: CMU subject = the number before the underscore; the four FAIR clips are one more
    subject. :data:`HELD_OUT` subjects are used only for validation.
 4. A Gaussian mixture (scikit-learn, a tool-time dependency only: the shipped file is read by NumPy) over the
@@ -38,8 +39,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tools"))
 sys.path.insert(0, str(ROOT / "src"))
 
-import smplcore  # noqa: E402
 from pose_prior_retarget import Motion, calibration, clip_motion, model_rest, retarget  # noqa: E402
+
+import smplcore  # noqa: E402
 from smplcore.fit.priors import joint_limits  # noqa: E402
 
 #: Subjects held out for validation: a varied Daz-friendly performer (walk, run, jump, punch, wash),
@@ -59,8 +61,8 @@ LICENCE = (
     "Capture Database (mocap.cs.cmu.edu) in Bruce Hahne's (cgspeed) BVH conversions, and 4 FAIR clips of "
     "facebookresearch/AnimatedDrawings (MIT licence, (c) Meta Platforms, Inc. and affiliates). CMU's terms allow "
     "use in research and commercial products, not reselling the data itself; this file holds only the mixture's "
-    "parameters, no motion. CMU asks for this acknowledgement: \"The data used in this project was obtained from "
-    "mocap.cs.cmu.edu. The database was created with funding from NSF EIA-0196217.\""
+    'parameters, no motion. CMU asks for this acknowledgement: "The data used in this project was obtained from '
+    'mocap.cs.cmu.edu. The database was created with funding from NSF EIA-0196217."'
 )
 
 
@@ -170,8 +172,10 @@ def main(argv: list[str] | None = None) -> int:
     best = max(ks, key=lambda k: scores[k]["held_out_loglik"])
     means, covars, weights = with_hands(fitted[best])
     report = {
-        "command": "python tools/train_pose_prior.py" + (" --quick" if args.quick else "")
-        + ("" if args.fps == 30 else f" --fps {args.fps:g}") + ("" if args.seed == 0 else f" --seed {args.seed}"),
+        "command": "python tools/train_pose_prior.py"
+        + (" --quick" if args.quick else "")
+        + ("" if args.fps == 30 else f" --fps {args.fps:g}")
+        + ("" if args.seed == 0 else f" --seed {args.seed}"),
         "fps": args.fps,
         "clips": len(clips),
         "frames": {"train": len(x_train), "held_out": len(x_held)},
@@ -192,8 +196,12 @@ def main(argv: list[str] | None = None) -> int:
         "hand_std_rad": HAND_STD,
         "seconds_total": round(time.perf_counter() - start, 1),
     }
-    provenance = LICENCE + " " + json.dumps(
-        {k: report[k] for k in ("command", "fps", "clips", "frames", "subjects", "mixtures", "chosen_components")}
+    provenance = (
+        LICENCE
+        + " "
+        + json.dumps(
+            {k: report[k] for k in ("command", "fps", "clips", "frames", "subjects", "mixtures", "chosen_components")}
+        )
     )
     if out is not None:
         out.parent.mkdir(parents=True, exist_ok=True)
