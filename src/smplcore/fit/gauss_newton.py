@@ -259,8 +259,10 @@ def _solve(body, problem, x, rows, shared_cols, coupled, max_iter, tol, step_tol
         if len(stale) == len(rows):  # every body: no copy
             hess = hessian(_unflat(body, x), rows)
         elif len(stale):
-            assert hess is not None  # the first iteration computes every body's
-            hess[stale] = hessian(_unflat(body, x[stale]), rows[stale])
+            part = hessian(_unflat(body, x[stale]), rows[stale])
+            if hess is None:  # bodies already at their optimum at the start never need theirs
+                hess = np.zeros((len(rows), *part.shape[1:]))
+            hess[stale] = part
         fresh[stale], age[stale] = True, 0
         assert hess is not None
         everyone = len(active) == len(rows)

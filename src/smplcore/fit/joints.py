@@ -18,6 +18,7 @@ from smplcore.fit import checks
 from smplcore.fit.body import FitBody, pose_points
 from smplcore.fit.gauss_newton import refine
 from smplcore.fit.initialize import kabsch, shape_and_translation
+from smplcore.fit.plausibility import assess, warn_implausible
 from smplcore.fit.result import FitResult, as_array, params_to_state, single_threaded_blas, state_to_params
 from smplcore.fit.rotations import rotation_log
 from smplcore.fit.solver import Objective, State
@@ -163,7 +164,9 @@ def fit_joints(
 
     Returns
     -------
-    FitResult with ``params`` and ``joint_error`` (B,) (metres). Targets whose size is more than 10x off the
+    FitResult with ``params``, ``joint_error`` (B,) (metres), ``point_error`` (B, n) and ``mask`` (B, n), and
+    ``plausibility`` (body joints outside their anatomical limits; an :class:`ImplausibleFitWarning` names
+    them). Targets whose size is more than 10x off the
     model's (millimetres, centimetres) are refused with a ValueError naming ``joints``; bodies left further
     from their targets than half the targets' spread are flagged not converged, with a warning; a fit that
     would come out non-finite raises :class:`smplcore.fit.FitError` (never a NaN result).
@@ -224,13 +227,31 @@ def fit_joints(
             state, _, _, converged, more = refine(body, obj_s, state, dtype=dtype, max_iter=5, tol=tol, workers=workers)
             iterations += more
     posed = pose_points(body, body.points(ids), body.full_pose(state.pose), state.coeffs, state.transl).points
+    mask = weights > 0
     dist = np.linalg.norm(posed - jt, axis=-1)
-    error = (dist * (weights > 0)).sum(1) / (weights > 0).sum(1)
-    converged = checks.flag_gross(converged, error, checks.spread_of(jt, weights > 0), "fit_joints", "m")
+    error = (dist * mask).sum(1) / mask.sum(1)
+    converged = checks.flag_gross(converged, error, checks.spread_of(jt, mask), "fit_joints", "m")
+    params = state_to_params(body, model, state)
     result = FitResult(
-        params=state_to_params(body, model, state), joint_error=error, converged=converged, iterations=iterations
+        params=params,
+        joint_error=error,
+        converged=converged,
+        iterations=iterations,
+        point_error=np.where(mask, dist, np.nan),
+        mask=mask,
+        plausibility=assess(body, _body_pose(body, state)),
     )
-    return checks.finite_result(result, "fit_joints")
+    result = checks.finite_result(result, "fit_joints")
+    warn_implausible(result.plausibility, "fit_joints")
+    return result
+
+
+def _body_pose(body: FitBody, state: State) -> np.ndarray:
+    """(B, 3 J) the ``body_pose`` block of a state ((B, 0) for models without one)."""
+    for block in body.blocks:
+        if block.name == "body_pose":
+            return state.pose[:, block.start : block.start + block.width]
+    return state.pose[:, :0]
 
 
 def _neighbour_prior(pose: np.ndarray, smoothness: float, prior: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
