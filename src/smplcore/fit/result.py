@@ -36,6 +36,8 @@ class FitResult:
         its targets (:func:`smplcore.fit.checks.flag_gross`).
     plausibility : a :class:`~smplcore.fit.plausibility.Plausibility` (which body joints lie outside their
         anatomical limits, by how many degrees per axis), or None.
+    bones : for a fit of 3D joints, a :class:`~smplcore.fit.bones.BoneReport` (target bone lengths against
+        the fitted bodies', the bones out of the shape space's reach), or None.
     iterations : refinement iterations run.
     camera : a 2D fit's :class:`~smplcore.fit.Camera` (with the estimated focal length when it was
         estimated), or None.
@@ -58,6 +60,7 @@ class FitResult:
         point_error: np.ndarray | None = None,
         mask: np.ndarray | None = None,
         plausibility: Plausibility | None = None,
+        bones: Any = None,
         measure: Callable[[], tuple[np.ndarray | None, np.ndarray | None]] | None = None,
     ) -> None:
         self.params = params
@@ -68,6 +71,7 @@ class FitResult:
         self.iterations = iterations
         self.camera = camera
         self.point_error, self.mask, self.plausibility = point_error, mask, plausibility
+        self.bones = bones
 
     def _measured(self) -> None:
         if self._measure is not None:
