@@ -147,6 +147,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--poses", type=Path, default=None, help="also save the retargeted poses (.npz) here")
     ap.add_argument("--fps", type=float, default=30.0)
     ap.add_argument("--components", default="1,4,8,16,32")
+    ap.add_argument("--gmm-stride", type=int, default=3, help="fit the mixtures on every n-th frame (30 fps / 3 = 10)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--quick", action="store_true", help=f"only {len(QUICK_CLIPS)} clips and K in 1,2")
     ap.add_argument("-q", "--quiet", action="store_true")
@@ -168,7 +169,7 @@ def main(argv: list[str] | None = None) -> int:
     x_train = np.concatenate([c["fit"].body_pose for c in train])
     x_held = np.concatenate([c["fit"].body_pose for c in held])
     point_errors = np.concatenate([c["fit"].point_error.ravel() for c in clips])
-    fitted, scores = fit_mixtures(x_train, x_held, ks, args.seed, log)
+    fitted, scores = fit_mixtures(x_train[:: args.gmm_stride], x_held, ks, args.seed, log)
     best = max(ks, key=lambda k: scores[k]["held_out_loglik"])
     means, covars, weights = with_hands(fitted[best])
     report = {
@@ -178,7 +179,7 @@ def main(argv: list[str] | None = None) -> int:
         + ("" if args.seed == 0 else f" --seed {args.seed}"),
         "fps": args.fps,
         "clips": len(clips),
-        "frames": {"train": len(x_train), "held_out": len(x_held)},
+        "frames": {"train": len(x_train), "held_out": len(x_held), "gmm_stride": args.gmm_stride},
         "subjects": {"train": sorted({c["subject"] for c in train}), "held_out": sorted({c["subject"] for c in held})},
         "retarget": {
             "joint_error_mean_mm": round(float(point_errors.mean() * 1000), 3),
