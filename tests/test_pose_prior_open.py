@@ -105,6 +105,7 @@ def test_natural_poses_cost_less_than_folded_or_impossible_ones(dim):
 @pytest.mark.slow
 @pytest.mark.skipif(not (MOCAP / "index.csv").exists(), reason="the shared mocap folder is absent (clean checkout)")
 def test_the_training_tool_runs_end_to_end_on_a_few_clips(tmp_path):
+    pytest.importorskip("sklearn", reason="the tool's mixtures need scikit-learn (pip install smplcore[tools])")
     out, report = tmp_path / "prior.npz", tmp_path / "report.json"
     cmd = [sys.executable, str(ROOT / "tools" / "train_pose_prior.py"), "--quick", "-q", "--mocap", str(MOCAP),
            "--out", str(out), "--report", str(report)]  # fmt: skip
