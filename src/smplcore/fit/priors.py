@@ -22,6 +22,8 @@ flexion component (left elbow −y, right elbow +y, knees +x) penalising the wro
 read through smplcore's allow-list unpickler. The cost of the best component at the current pose
 (``½ (θ−μ)ᵀ Σ⁻¹ (θ−μ) − log w``, the max-mixture approximation), as residuals ``Lᵀ(θ−μ)``. For models
 with 21 body joints (SMPL+H, SMPL-X) the first 63 values are used (the Gaussians' marginals).
+:meth:`GMMPrior.open` is smplcore's own mixture of the same form, learned from open motion capture (CMU mocap,
+FAIR AnimatedDrawings) by ``tools/train_pose_prior.py``: it needs no registration or download.
 """
 
 from __future__ import annotations
@@ -174,6 +176,18 @@ class GMMPrior:
             raise ModelFileError(path, f"expected a dict with means, covars and weights; missing {missing}")
         means, covars, weights = (numeric_array(path, data[k], k, kinds="biuf") for k in keys)
         return cls.from_arrays(means, covars, weights, str(path))
+
+    @classmethod
+    def open(cls) -> GMMPrior:
+        """smplcore's open pose prior (``smplcore/data/pose_prior_open.npz``): a Gaussian mixture over the 69
+        body-pose values of SMPL's 23 body joints (``.marginal(63)`` for the 21 of SMPL+H / SMPL-X), learned from
+        CMU and FAIR motion capture retargeted to the open model; the file's ``provenance`` states the data, its
+        licence, the held-out subjects and the command that rebuilds it."""
+        path = Path(__file__).resolve().parents[1] / "data" / "pose_prior_open.npz"
+        if not path.exists():
+            raise ModelFileError(path, "the open pose prior is missing from the installation (reinstall smplcore)")
+        with np.load(path, allow_pickle=False) as data:
+            return cls.from_arrays(data["means"], data["covars"], data["weights"], str(path))
 
     @property
     def dim(self) -> int:
