@@ -59,6 +59,8 @@ class Objective:
     pose_mean : (B, Q) the centre μ of the pose prior (None: zero).
     pose_terms : the non-quadratic pose priors (limits, hinge, mixture), a
         :class:`~smplcore.fit.prior_terms.PoseTerms`, or None.
+    temporal : smoothness over consecutive bodies, a :class:`~smplcore.fit.temporal.Temporal`, or None
+        (:func:`smplcore.fit.gauss_newton.refine` solves the coupled system).
     """
 
     points: Points
@@ -71,6 +73,7 @@ class Objective:
     pose_prior: np.ndarray | None = None
     pose_mean: np.ndarray | None = None  # (B, Q) the pose prior's centre (None: zero)
     pose_terms: Any = None  # PoseTerms or None
+    temporal: Any = None  # Temporal or None: couples consecutive bodies
 
 
 def _columns(body: FitBody, obj: Objective) -> np.ndarray:
