@@ -83,7 +83,7 @@ def test_the_limits_keep_a_short_torso_plausible_and_the_fit_names_the_bones(mod
     assert target == pytest.approx(np.linalg.norm(rest[12] - rest[0]) - 0.18, abs=0.03)
     assert length - target > 0.1  # the shape space shortens the torso by a few centimetres, not 18
     i = NAMES.index("neck")
-    assert np.nanmin(r.point_error[:, i]) > 0.015  # the neck is missed, not met by folding
+    assert np.nanmin(r.point_error[:, i]) > 0.01  # the neck is missed, not met by folding
 
 
 def test_reachable_bones_are_not_reported(model, recwarn):

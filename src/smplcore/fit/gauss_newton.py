@@ -274,17 +274,17 @@ def _solve(body, problem, x, rows, shared_cols, coupled, max_iter, tol, step_tol
     scale = np.maximum(problem.obj.weights[rows].sum(1), 1e-300)
     cost, grad, dist = evaluate(_unflat(body, x), rows)
     converged = cost <= abs_tol * scale
-    if coupled:
-        converged[:] = converged.all()
+    everyone = np.arange(len(rows))
     damping = np.full(len(rows), 1e-4)
     hess: np.ndarray | None = None
     fresh = np.zeros(len(rows), bool)  # the Gauss-Newton matrix was computed at the current state
     age = np.zeros(len(rows), np.int64)
     iterations = 0
     for _ in range(max_iter):
-        active = np.flatnonzero(~converged)
-        if not len(active):
+        if converged.all():
             break
+        # coupled bodies are one system: all of them step until every one has converged
+        active = everyone if coupled else np.flatnonzero(~converged)
         iterations += 1
         sub = rows[active]
         stale = active[~fresh[active] & ((age[active] >= every) | (iterations == 1))]
@@ -297,8 +297,8 @@ def _solve(body, problem, x, rows, shared_cols, coupled, max_iter, tol, step_tol
             hess[stale] = part
         fresh[stale], age[stale] = True, 0
         assert hess is not None
-        everyone = len(active) == len(rows)
-        system = problem.terms_hessian(hess if everyone else hess[active], x[active, : body.num_pose])
+        all_active = len(active) == len(rows)
+        system = problem.terms_hessian(hess if all_active else hess[active], x[active, : body.num_pose])
         if temporal is not None:
             step = temporal_step(system, grad[active], damping[active], shared_cols, coupling)
         else:
@@ -325,7 +325,8 @@ def _solve(body, problem, x, rows, shared_cols, coupled, max_iter, tol, step_tol
         damping[active] = np.where(better, np.maximum(damping[active] / 3, 1e-9), damping[active] * 10)
         done = (better & ((decrease < tol) | small | tiny)) | (~better & (damping[active] > 1e8))
         done |= cost[active] <= abs_tol * scale[active]  # at the precision's floor: steps only add noise
-        if coupled:  # one system: it has converged when every body has (a mean decrease hides a body far off)
-            done = np.full(len(active), done.all())
-        converged[active] |= done
+        if coupled:  # each body's own test at the system's last accepted step (a mean decrease hides a body)
+            converged[:] = np.where(better, done, converged | done)
+        else:
+            converged[active] |= done
     return x, cost, dist, converged, iterations

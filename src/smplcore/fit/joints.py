@@ -31,8 +31,6 @@ from smplcore.fit.vertices import _weights, coefficient_masks
 JOINT_LIMITS_WEIGHT = 1.0
 #: Default weight of a pose mixture in :func:`fit_joints` (m² per nat), when one is given.
 GMM_WEIGHT = 1e-4
-#: Multipliers of the smoothness weight in the rounds before the last (a continuation from a stiff sequence).
-SMOOTHING_ANNEAL = (100.0, 10.0)
 
 
 def joint_points(body: FitBody, joint_names: Any, count: int) -> np.ndarray:
@@ -122,8 +120,8 @@ def fit_joints(
         bodies of the batch (a sequence, in order), relative to the joints: each parameter's change costs
         ``smoothness`` times what moving the targets' joints by that change costs
         (:meth:`smplcore.fit.temporal.Temporal.relative`), so it acts as a weight on the joints' velocities.
-        The coupled system is solved at once (:mod:`smplcore.fit.temporal`), from a stiffer sequence down
-        (``SMOOTHING_ANNEAL``); rotations are made continuous along the sequence first. 0 (the default) fits
+        The coupled system is solved at once (:mod:`smplcore.fit.temporal`); rotations are made continuous
+        along the sequence first. 0 (the default) fits
         each body on its own; 1 to 3 halves centimetre noise (on 40 frames of a turning body).
     smoothing_rounds : kept for compatibility (checked, no longer used: the coupled system needs no rounds).
     max_iter, tol : Levenberg–Marquardt iterations and relative cost decrease to stop at. The default
@@ -192,13 +190,13 @@ def fit_joints(
         obj = Objective(**{**obj.__dict__, "temporal": temporal})
     dtype = np.float64  # 22 points: precision is free
     iterations = 0
-    for factor in SMOOTHING_ANNEAL if temporal is not None else ():
-        # a stiffer sequence first: frames that fell into another basin than their neighbours' join them
-        stiff = temporal.scaled(factor)
-        state, _, _, _, more = refine(
-            body, Objective(**{**obj.__dict__, "temporal": stiff}), state, dtype=dtype, max_iter=max_iter, tol=tol
+    if batch > 1 and obj.shared.any() and max_iter:
+        # each body on its own first (its own damping and stopping test), then the shared shape from there
+        alone = Objective(**{**obj.__dict__, "shared": np.zeros_like(obj.shared), "temporal": None})
+        state, _, _, _, iterations = refine(
+            body, alone, state, dtype=dtype, max_iter=max_iter, tol=tol, workers=workers
         )
-        iterations += more
+        state = joint_shape_and_translation(body, obj, state)
     state, _, _, converged, more = refine(body, obj, state, dtype=dtype, max_iter=max_iter, tol=tol, workers=workers)
     iterations += more
     posed = pose_points(body, body.points(ids), body.full_pose(state.pose), state.coeffs, state.transl).points
