@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from smplcore.fit.cli_types import _extrinsics, _floats, _positive, _positive_floats, _positive_int
+from smplcore.fit.cli_types import _extrinsics, _floats, _positive, _positive_floats, _positive_int, _skeleton, _units
 
 EPILOG = """\
 examples:
@@ -30,12 +30,13 @@ examples:
   smplcore fit openpose_frames/ -o fit.npz --image-size 1920,1080 --estimate-focal
   smplcore fit openpose_frames/ -o fit.npz --image-size 1920,1080 --vposer V02_05/
   smplcore fit joints.npy -o fit.npz --convention coco17        # or --joint-names pelvis,left_hip,...
+  smplcore fit clip.bvh.gz -o fit.npz                           # skeleton and units detected (--skeleton, --units)
   smplcore fit smplh_motion.npz -o smplx.npz --model-type smplx --model-path models/ --source-model-path models/
   smplcore fit inputs/ -o fits/ --image-size 1920,1080 --workers 2
   smplcore fit inputs/ -o fits/ --image-size 1920,1080 --ray          # Ray tasks (local, or --ray auto)
 Exit status: 0 all fitted, 1 inputs skipped (bad input), 2 bad arguments. See docs/fit.md."""
 
-SUFFIXES = (".json", ".npy", ".npz")
+SUFFIXES = (".json", ".npy", ".npz", ".bvh", ".bvh.gz")
 MANIFEST = "fit_manifest.json"
 
 
@@ -45,8 +46,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "fit",
         help="fit a body model to 2D keypoints, 3D joints or another model's motion; write AMASS-style .npz",
         description="Fit model parameters to INPUT (an OpenPose JSON folder, a COCO keypoint .json, a .npy of "
-        "joints (T, n, 3), an AMASS-style .npz of another model, or a folder of such inputs) and write an "
-        "AMASS-style .npz that smplcore export / process read.",
+        "joints (T, n, 3), a BVH motion capture (.bvh, .bvh.gz), an AMASS-style .npz of another model, or a folder "
+        "of such inputs) and write an AMASS-style .npz that smplcore export / process read.",
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -62,6 +63,16 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--source-model-path", default=None, help="conversion: the source motion's model (default: open)")
     p.add_argument("--convention", default=None, help="keypoint/joint convention (default: the reader's)")
     p.add_argument("--joint-names", default=None, help=".npy joints: the model joint names, comma-separated")
+    p.add_argument(
+        "--skeleton", type=_skeleton, default=None, metavar="NAME",
+        help="BVH: the skeleton map (default: detected from the joint names); .npy: read the points as this keypoint "
+        "skeleton. Known: cmu_daz, cmu_mb, cmu_max, fair, h36m17, h36m32, mediapipe33, openpose25",
+    )  # fmt: skip
+    p.add_argument(
+        "--units", type=_units, default=None, metavar="UNITS",
+        help="BVH / .npy joints: cm, m, mm, in, cmu (CMU ASF, 0.0254/0.45 m) or metres per unit (default: told "
+        "from the leg length, and said; centimetres are converted with a message)",
+    )  # fmt: skip
     p.add_argument("--focal", type=_positive_floats, default=None, help="2D: focal length f or fx,fy (pixels)")
     p.add_argument("--center", type=_floats, default=None, help="2D: principal point cx,cy (pixels)")
     p.add_argument(
@@ -177,6 +188,8 @@ def _settings(args: argparse.Namespace):
         gmm=None if args.gmm is None else str(Path(args.gmm).resolve()),
         extrinsics=args.extrinsics,
         max_iter=args.max_iter,
+        skeleton=args.skeleton,
+        units=args.units,
     )
     if settings.vposer or settings.gmm:  # read once here: a bad prior file is one clear error, not one per input
         from smplcore.fit.inputs import _priors
@@ -201,7 +214,7 @@ def find_inputs(folder: Path) -> list[Path]:
     for p in sorted(folder.iterdir()):
         if p.name.startswith(".") or p.name == MANIFEST:
             continue
-        if (p.is_file() and p.suffix.lower() in SUFFIXES) or (p.is_dir() and _is_single(p)):
+        if (p.is_file() and p.name.lower().endswith(SUFFIXES)) or (p.is_dir() and _is_single(p)):
             found.append(p)
     return found
 
@@ -264,7 +277,7 @@ def run(args: argparse.Namespace) -> int:
     if not source.is_dir():  # a FIFO, device or socket: refused without opening it
         from smplcore.io import open_input
 
-        open_input(source, "an input file (.json, .npy, .npz) or folder")[0].close()
+        open_input(source, "an input file (.json, .npy, .npz, .bvh) or folder")[0].close()
     _check_camera(args, source)
     if _is_single(source):
         if out.suffix.lower() != ".npz":
@@ -275,11 +288,13 @@ def run(args: argparse.Namespace) -> int:
         tasks = [(source, out)]
         manifest = None
     else:
+        from smplcore.fit.skeleton_inputs import input_stem
+
         inputs = find_inputs(source)
         if not inputs:
-            raise ValueError(f"{source}: no inputs (.json, .npy, .npz files or OpenPose folders)")
+            raise ValueError(f"{source}: no inputs (.json, .npy, .npz, .bvh(.gz) files or OpenPose folders)")
         _output_folder(out)
-        tasks = [(p, out / (p.stem if p.is_file() else p.name)) for p in inputs]
+        tasks = [(p, out / (input_stem(p) if p.is_file() else p.name)) for p in inputs]
         tasks = [(p, o.with_name(o.name + ".npz")) for p, o in tasks]
         manifest = out / MANIFEST
     entries, todo = [], []
@@ -430,6 +445,8 @@ def _report(
         unit = e.get("error_unit", "")
         scale, shown = (1000.0, "mm") if unit == "m" else (1.0, unit)
         print(f"wrote {e['output']}: {_rows(e['frames'], e)}, mean error {e['mean_error'] * scale:.2f} {shown}")
+        for note in e.get("notes", []):  # what was detected: a BVH's skeleton and units, joints in centimetres
+            print(f"  {e['input']}: {note}")
         if e.get("missing"):
             print(f"  frames without a detection (filled from the nearest frame): {e['missing'][:20]}")
         if e.get("images_without_person"):

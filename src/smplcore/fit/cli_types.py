@@ -75,3 +75,24 @@ def _positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected 1 or more, got {value}")
     return value
+
+
+def _skeleton(text: str) -> str:
+    """A known skeleton map's name (``smplcore.skeletons.skeleton_names()``)."""
+    from smplcore import skeletons
+
+    try:
+        return skeletons.skeleton_map(text).name
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("skeleton: ")) from None
+
+
+def _units(text: str) -> str:
+    """``cm``, ``m``, ``mm``, ``in``, ``cmu``, ``ft`` or metres per unit."""
+    from smplcore import skeletons
+
+    try:
+        skeletons.parse_units(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("units: ")) from None
+    return text
