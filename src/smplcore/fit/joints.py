@@ -213,7 +213,7 @@ def fit_joints(
         point_error=np.where(mask, dist, np.nan),
         mask=mask,
         plausibility=assess(body, _body_pose(body, state)),
-        bones=bone_report(body, ids, jt, mask, state.coeffs),
+        bones=bone_report(model, jt, mask, _names(body, joint_names, count)),
     )
     result = checks.finite_result(result, "fit_joints")
     warn_unreachable(result.bones, "fit_joints")
@@ -291,6 +291,11 @@ def _temporal(body: FitBody, obj: Objective, state: State, smoothness: float) ->
     coeff = (cols >= q) & (cols < q + k)
     smoothed = ~coeff | ~obj.shared[np.clip(cols - q, 0, k - 1)]  # and each body's own shape
     return Temporal.relative(smoothness, stiffness[smoothed], cols[smoothed])
+
+
+def _names(body: FitBody, joint_names: Any, count: int) -> list[str]:
+    """The model joint names of the targets."""
+    return list(body.output_joint_names[:count]) if joint_names is None else list(joint_names)
 
 
 def _rigid_bones(body: FitBody, ids: np.ndarray) -> list[tuple[int, int]]:
