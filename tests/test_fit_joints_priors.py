@@ -132,3 +132,28 @@ def test_a_gaussian_mixture_plugs_in_and_pulls_towards_its_mean(model):
     assert np.abs(pulled.params["body_pose"]).sum() < 0.8 * np.abs(plain.params["body_pose"]).sum()
     with pytest.raises(TypeError, match="gmm"):
         fit.fit_joints(model, target, joint_names=NAMES, gmm=3)
+
+
+def test_auto_takes_the_open_mixture_only_where_bones_are_out_of_reach(model, monkeypatch):
+    calls = []
+
+    def open_prior(cls):
+        calls.append(1)
+        return GMMPrior.from_arrays(np.zeros((1, 69)), np.eye(69)[None] * 0.05**2, np.ones(1))
+
+    monkeypatch.setattr(GMMPrior, "open", classmethod(open_prior), raising=False)
+    reachable = _targets(model, _natural(model, 2))
+    auto = fit.fit_joints(model, reachable, joint_names=NAMES)
+    none = fit.fit_joints(model, reachable, joint_names=NAMES, gmm=None)
+    assert not calls
+    np.testing.assert_allclose(auto.params["body_pose"], none.params["body_pose"])
+    short = _short_torso(model, batch=2)
+    with pytest.warns(BoneLengthWarning):
+        auto = fit.fit_joints(model, short, joint_names=NAMES)
+        none = fit.fit_joints(model, short, joint_names=NAMES, gmm=None)
+    assert calls
+    bend = {
+        k: sum(np.abs(a[:, 0]) for a in _spine(model, r).values()).mean() for k, r in (("auto", auto), ("none", none))
+    }
+    assert bend["auto"] < 0.7 * bend["none"]  # the spine and neck stay nearer the mixture's upright mean
+    assert auto.plausible.all()

@@ -22,6 +22,7 @@ from smplcore.fit.initialize import shape_and_translation
 from smplcore.fit.joint_init import initial_state, joint_shape_and_translation
 from smplcore.fit.plausibility import TOLERANCE, assess, warn_implausible
 from smplcore.fit.prior_terms import PoseTerms, gmm_prior
+from smplcore.fit.priors import GMMPrior
 from smplcore.fit.result import FitResult, params_to_state, single_threaded_blas, state_to_params
 from smplcore.fit.solver import Objective, State, _columns, normal_equations, residual_cost
 from smplcore.fit.temporal import Temporal, one_person, unwrap_rotations
@@ -80,7 +81,7 @@ def fit_joints(
     pose_prior: float = 1e-4,
     joint_limits: float = JOINT_LIMITS_WEIGHT,
     bending: float = 0.0,
-    gmm: Any = None,
+    gmm: Any = "auto",
     gmm_weight: float = GMM_WEIGHT,
     smoothness: float = 0.0,
     init: dict[str, Any] | None = None,
@@ -114,8 +115,11 @@ def fit_joints(
         pose (a torso shorter than the shape space holds) is missed rather than met by folding the spine.
         0 turns them off.
     bending : weight of the elbow/knee hinge prior alone (the limits hold it already).
-    gmm, gmm_weight : a pose mixture (:class:`GMMPrior`, a path to SMPLify's ``gmm_08.pkl``) and its weight
-        (m² per nat); off by default.
+    gmm, gmm_weight : a pose mixture (:class:`GMMPrior`, a path to SMPLify's ``gmm_08.pkl``, ``"open"`` for
+        smplcore's own when installed, or None) and its weight (m² per nat). ``"auto"`` (the default) takes
+        the open mixture where it helps: when some target bones lie outside what the shape space reaches
+        (``result.bones``), so that the pose stays natural, not only within its limits, where the joints
+        cannot be met; otherwise none.
     smoothness : weight of the changes of pose, translation (and shape, when not shared) between consecutive
         bodies of the batch (a sequence, in order), relative to the joints: each parameter's change costs
         ``smoothness`` times what moving the targets' joints by that change costs
@@ -180,6 +184,9 @@ def fit_joints(
     free, shared = coefficient_masks(body, fit_betas, False, bool(share_betas))
     start = params_to_state(body, {**(init or {}), **({} if betas is None else {"betas": betas})}, batch)
     prior = body.pose_prior_weights(pose_prior)
+    bones = bone_report(model, jt, weights > 0, _names(body, joint_names, count))
+    if isinstance(gmm, str) and gmm == "auto":
+        gmm = "open" if bones is not None and bones.out_of_reach and hasattr(GMMPrior, "open") else None
     terms = PoseTerms.of(body, weights_["joint_limits"], weights_["bending"], gmm_prior(gmm), weights_["gmm_weight"])
     obj = Objective(body.points(ids), jt, weights, free, shared, fit_transl, shape_prior, prior, pose_terms=terms)
     state = start if init is not None else _start(body, ids, obj, start)
@@ -213,7 +220,7 @@ def fit_joints(
         point_error=np.where(mask, dist, np.nan),
         mask=mask,
         plausibility=assess(body, _body_pose(body, state)),
-        bones=bone_report(model, jt, mask, _names(body, joint_names, count)),
+        bones=bones,
     )
     result = checks.finite_result(result, "fit_joints")
     warn_unreachable(result.bones, "fit_joints")
