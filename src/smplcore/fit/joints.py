@@ -189,23 +189,16 @@ def fit_joints(
         gmm = "open" if bones is not None and bones.out_of_reach and hasattr(GMMPrior, "open") else None
     terms = PoseTerms.of(body, weights_["joint_limits"], weights_["bending"], gmm_prior(gmm), weights_["gmm_weight"])
     obj = Objective(body.points(ids), jt, weights, free, shared, fit_transl, shape_prior, prior, pose_terms=terms)
-    state = start if init is not None else _start(body, ids, obj, start)
+    state = start if init is not None else _start(body, ids, obj, start, clip=max_iter > 0)
     temporal = None
     if smoothness and batch > 1:
         state.pose = unwrap_rotations(body, state.pose)  # consecutive rotations as consecutive parameters
         temporal = _temporal(body, obj, state, smoothness)
         obj = Objective(**{**obj.__dict__, "temporal": temporal})
     dtype = np.float64  # 22 points: precision is free
-    iterations = 0
-    if batch > 1 and obj.shared.any() and max_iter:
-        # each body on its own first (its own damping and stopping test), then the shared shape from there
-        alone = Objective(**{**obj.__dict__, "shared": np.zeros_like(obj.shared), "temporal": None})
-        state, _, _, _, iterations = refine(
-            body, alone, state, dtype=dtype, max_iter=max_iter, tol=tol, workers=workers
-        )
-        state = joint_shape_and_translation(body, obj, state)
-    state, _, _, converged, more = refine(body, obj, state, dtype=dtype, max_iter=max_iter, tol=tol, workers=workers)
-    iterations += more
+    state, _, _, converged, iterations = refine(
+        body, obj, state, dtype=dtype, max_iter=max_iter, tol=tol, workers=workers
+    )
     posed = pose_points(body, body.points(ids), body.full_pose(state.pose), state.coeffs, state.transl).points
     mask = weights > 0
     dist = np.linalg.norm(posed - jt, axis=-1)
@@ -228,13 +221,14 @@ def fit_joints(
     return result
 
 
-def _start(body: FitBody, ids: np.ndarray, obj: Objective, start: State) -> State:
-    """The closed-form start (:mod:`smplcore.fit.joint_init`); with joint limits, also that start with the body
-    joints clipped into their limits (shape and translation solved again), each body taking the one of lower
-    cost: a target bent past the limits is approached from inside them."""
+def _start(body: FitBody, ids: np.ndarray, obj: Objective, start: State, clip: bool = True) -> State:
+    """The closed-form start (:mod:`smplcore.fit.joint_init`); with joint limits (and ``clip``: the solver runs
+    from it), also that start with the body joints clipped into their limits (shape and translation solved
+    again), each body taking the one of lower cost: a target bent past the limits is approached from inside
+    them."""
     state = initial_state(body, ids, obj, start)
     terms = obj.pose_terms
-    if terms is None or not terms.limits:
+    if terms is None or not terms.limits or not clip:
         return state
     clipped = state.copy()
     slack = np.radians(TOLERANCE)  # a start a little past a limit is left (a twist the bones do not show)

@@ -38,8 +38,7 @@ class FitResult:
         anatomical limits, by how many degrees per axis), or None.
     bones : for a fit of 3D joints, a :class:`smplcore.skeletons.BoneReport` (the targets' bone lengths against
         what the model's shape space reaches; ``print(r.bones)`` for the table), or None.
-    iterations : refinement iterations run (for bodies sharing their shape, those of each body alone first
-        and of the joint system after).
+    iterations : refinement iterations run.
     camera : a 2D fit's :class:`~smplcore.fit.Camera` (with the estimated focal length when it was
         estimated), or None.
 
