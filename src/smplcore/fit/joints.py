@@ -260,7 +260,7 @@ def target_joints(joints: Any) -> tuple[np.ndarray, np.ndarray]:
         raise ShapeError(f"joints: expected at least 3 joints per body, got {count}")
     if np.isinf(jt).any():
         raise ValueError(f"joints: {int(np.isinf(jt).sum())} infinite value(s); mark a missing joint with NaN")
-    present = ~np.isnan(jt).any(axis=-1)
+    present = np.logical_not(np.isnan(jt).any(axis=-1))
     empty = np.flatnonzero(~present.any(axis=1))
     if len(empty):
         raise ValueError(

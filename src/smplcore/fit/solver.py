@@ -171,10 +171,10 @@ def normal_equations(
     prior = _prior_diagonal(obj, cols, body.num_pose, body.num_coeffs, batch)
     grad = grad + prior * x
     cost = cost + _prior_cost(obj, state)
-    hess = hess + prior[:, :, None] * np.eye(len(cols)) if hessian else None
+    system = hess + prior[:, :, None] * np.eye(len(cols)) if hessian else None
     if obj.pose_terms is not None:
-        obj.pose_terms.add_system(state.pose, np.where(cols < q_, cols, -1), grad, hess)
-    return hess, grad, cost
+        obj.pose_terms.add_system(state.pose, np.where(cols < q_, cols, -1), grad, system)
+    return system, grad, cost
 
 
 def _step(hess: np.ndarray, grad: np.ndarray, damping: np.ndarray, shared_cols: np.ndarray) -> np.ndarray:
