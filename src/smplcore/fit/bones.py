@@ -11,6 +11,7 @@ meet such targets with a plausible pose, and its joint limits keep it from foldi
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
@@ -29,7 +30,9 @@ def bone_report(model: Any, targets: np.ndarray, present: np.ndarray, names: lis
 
     joints = np.where(present[..., None], targets, np.nan)
     try:
-        return bone_lengths(model, joints, names)
+        with warnings.catch_warnings():  # a joint missing in every frame: its bones' lengths are NaN
+            warnings.simplefilter("ignore", RuntimeWarning)
+            return bone_lengths(model, joints, names)
     except ValueError:  # no bone among the targets (vertex joints alone, a few unrelated joints)
         return None
 
