@@ -8,6 +8,7 @@ import pytest
 import smplcore
 from smplcore import fit
 from smplcore.errors import ShapeError
+from smplcore.fit.priors import joint_limits
 
 
 @pytest.fixture(scope="module")
@@ -15,8 +16,11 @@ def open_model():
     return smplcore.BodyModel(model_type="open", dtype=np.float64)
 
 
-def _poses(batch, rng, scale=0.3):
+def _poses(batch, rng, scale=0.3, plausible=True):
     body_pose = rng.normal(0, scale, (batch, 69))
+    if plausible:  # inside the anatomical limits (by 1°), which fit_joints keeps by default
+        lo, hi = joint_limits(smplcore.BodyModel(model_type="open").joint_names[1:24])
+        body_pose = np.clip(body_pose, lo.reshape(-1) + 0.02, hi.reshape(-1) - 0.02)
     body_pose[:, 60:] = 0.0  # wrists and hands: not seen by 22 joints
     return {
         "global_orient": rng.normal(0, 0.5, (batch, 3)),
@@ -37,9 +41,9 @@ def test_22_joints_are_matched_within_millimetres(open_model):
 
 
 def test_without_priors_the_joints_are_exact(open_model):
-    params = _poses(2, np.random.default_rng(1))
+    params = _poses(2, np.random.default_rng(1), plausible=False)
     target = open_model(**params).joints[:, :24]
-    r = fit.fit_joints(open_model, target, pose_prior=1e-9, shape_prior=0.0)
+    r = fit.fit_joints(open_model, target, pose_prior=1e-9, shape_prior=0.0, joint_limits=0.0)
     assert r.joint_error.max() < 1e-5
 
 
@@ -99,8 +103,10 @@ def test_bad_joint_inputs(open_model):
         fit.fit_joints(open_model, np.zeros((1, 4, 3)), joint_weights=[1, 1, 0, 0])
     bad = np.zeros((1, 22, 3))
     bad[0, 2, 0] = np.inf
-    with pytest.raises(ValueError, match="joints: 1 non-finite"):
+    with pytest.raises(ValueError, match="joints: 1 infinite value.*NaN"):
         fit.fit_joints(open_model, bad)
+    with pytest.raises(ValueError, match=r"joints: bodies \[1\] .* all NaN"):
+        fit.fit_joints(open_model, np.stack([np.ones((22, 3)), np.full((22, 3), np.nan)]))
 
 
 def test_landmarks_are_refused(fake_models):
@@ -136,7 +142,7 @@ def test_memory_grows_with_the_batch_by_chunks_not_by_the_whole_stack():
         rng = np.random.default_rng(0)
         target = m(body_pose=rng.normal(0, 0.2, (4000, 69)), return_verts=False).joints[:, :22]
         before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-        r = fit.fit_joints(m, target, workers=1, max_iter=3)
+        r = fit.fit_joints(m, target, workers=1, max_iter=3, joint_limits=0.0)
         print((resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) // 1024, float(r.joint_error.max()))
         """
     )

@@ -10,6 +10,7 @@ import pytest
 import smplcore
 from smplcore import fit
 from smplcore.fit.checks import FitError, finite_result
+from smplcore.fit.priors import joint_limits
 
 
 @pytest.fixture(scope="module")
@@ -19,7 +20,9 @@ def model():
 
 def _joints(model, batch=2):
     rng = np.random.default_rng(0)
-    return model(body_pose=rng.normal(0, 0.2, (batch, 69))).joints[:, :22]
+    lo, hi = joint_limits(model.joint_names[1:24])  # a pose inside the anatomical limits (fit_joints keeps them)
+    pose = np.clip(rng.normal(0, 0.2, (batch, 69)), lo.reshape(-1) + 0.02, hi.reshape(-1) - 0.02)
+    return model(body_pose=pose).joints[:, :22]
 
 
 def _keypoints(model):

@@ -18,7 +18,10 @@ the focal length known or estimated (``estimate_focal``).
 No fit returns what it did not find (:mod:`smplcore.fit.checks`): option values are checked (a NaN weight
 is an error, not a switched-off prior), targets more than 10x off the model's size are refused (millimetres),
 bodies left further from their targets than half their spread are flagged not converged with a warning, and
-a non-finite parameter or error raises :class:`FitError` instead of being returned.
+a non-finite parameter or error raises :class:`FitError` instead of being returned. Every fit reports
+each target point's error and the mask of points used, and which body joints lie outside their anatomical
+limits (:func:`assess`, :class:`Plausibility`); a fit of joints or keypoints returning implausible bodies
+warns (:class:`ImplausibleFitWarning`).
 """
 
 from smplcore.fit.camera import Camera
@@ -26,6 +29,7 @@ from smplcore.fit.checks import FitError
 from smplcore.fit.convert import convert, correspondence
 from smplcore.fit.joints import fit_joints
 from smplcore.fit.keypoints2d import fit_keypoints
+from smplcore.fit.plausibility import ImplausibleFitWarning, Plausibility, assess
 from smplcore.fit.priors import GMMPrior
 from smplcore.fit.result import FitResult
 from smplcore.fit.vertices import fit_vertices
@@ -36,7 +40,10 @@ __all__ = [
     "FitError",
     "FitResult",
     "GMMPrior",
+    "ImplausibleFitWarning",
+    "Plausibility",
     "VPoserPrior",
+    "assess",
     "convert",
     "correspondence",
     "fit_joints",

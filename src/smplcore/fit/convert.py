@@ -277,7 +277,8 @@ def convert(
         if len(names) < 3:
             raise ValueError("method='joints': the two models share fewer than 3 joint names")
         picked = [source.output_joint_names.index(n) for n in names]
-        return fit_joints(target_model, joints[:, picked], joint_names=names, **fit_options)
+        # a conversion reproduces the source body, outside the anatomical limits too
+        return fit_joints(target_model, joints[:, picked], joint_names=names, **{"joint_limits": 0.0, **fit_options})
     if method != "vertices":
         raise ValueError(f"method: expected 'vertices' or 'joints', got {method!r}")
     corr = correspondence(source_model, target_model, deformation_transfer=deformation_transfer, cache_dir=cache_dir)

@@ -68,6 +68,7 @@ class _Problem:
             cols = cols[(cols >= q) | moving[np.minimum(cols // 3, nj)]]
             self.select = None if len(cols) == q + body.num_coeffs + 3 else cols
         self.cols = cols
+        self.fitted_pose = np.where(cols < q, cols, -1)  # the pose column of each fitted column (-1: none)
         self.transform = None if body.pose_map is None else _column_map(body, cols)
         self.ratio = obj.weights.sum(1) / np.maximum(self.hobj.weights.sum(1), 1e-300)
 
@@ -85,7 +86,20 @@ class _Problem:
         sub = self._sub(obj, rows)
         grad = grad + self._prior(rows) * x[:, self.cols]
         dist = np.sqrt(np.einsum("ncb,ncb->bn", diff, diff, dtype=np.float64))
-        return cost + _prior_cost(sub, state), grad, dist
+        cost = cost + _prior_cost(sub, state)
+        if obj.pose_terms is not None:
+            cost = cost + obj.pose_terms.add_system(state.pose, self.fitted_pose, grad, None)
+        return cost, grad, dist
+
+    def terms_hessian(self, hess: np.ndarray, pose: np.ndarray) -> np.ndarray:
+        """(b, P, P) ``hess`` plus the non-quadratic priors' Gauss–Newton matrix at (b, Q) ``pose`` (a new
+        array; ``hess`` itself when there are none): their active set changes faster than the data's matrix
+        is refreshed."""
+        if self.obj.pose_terms is None:
+            return hess
+        hess = hess.copy()
+        self.obj.pose_terms.add_system(pose, self.fitted_pose, None, hess)
+        return hess
 
     @staticmethod
     def _sub(obj: Objective, rows: np.ndarray) -> Objective:
@@ -93,7 +107,7 @@ class _Problem:
         if prior is not None and prior.ndim == 2:
             prior = prior[rows]
         mean = None if obj.pose_mean is None else obj.pose_mean[rows]
-        return Objective(**{**obj.__dict__, "pose_prior": prior, "pose_mean": mean})
+        return Objective(**{**obj.__dict__, "pose_prior": prior, "pose_mean": mean, "pose_terms": None})
 
     def hessian(self, state: State, rows: np.ndarray) -> np.ndarray:
         """(b, P, P) Gauss–Newton matrix of the subset (without the pose correctives' share, see
@@ -259,12 +273,15 @@ def _solve(body, problem, x, rows, shared_cols, coupled, max_iter, tol, step_tol
         if len(stale) == len(rows):  # every body: no copy
             hess = hessian(_unflat(body, x), rows)
         elif len(stale):
-            assert hess is not None  # the first iteration computes every body's
-            hess[stale] = hessian(_unflat(body, x[stale]), rows[stale])
+            part = hessian(_unflat(body, x[stale]), rows[stale])
+            if hess is None:  # bodies already at their optimum at the start never need theirs
+                hess = np.zeros((len(rows), *part.shape[1:]))
+            hess[stale] = part
         fresh[stale], age[stale] = True, 0
         assert hess is not None
         everyone = len(active) == len(rows)
-        step = _step(hess if everyone else hess[active], grad[active], damping[active], shared_cols)
+        system = problem.terms_hessian(hess if everyone else hess[active], x[active, : body.num_pose])
+        step = _step(system, grad[active], damping[active], shared_cols)
         trial = x[active].copy()
         trial[:, cols] += step
         new_cost, new_grad, new_dist = evaluate(_unflat(body, trial), sub)

@@ -16,12 +16,20 @@ import numpy as np
 from smplcore.errors import ShapeError
 from smplcore.fit import checks
 from smplcore.fit.body import FitBody, pose_points
+from smplcore.fit.bones import bone_report, warn_unreachable
 from smplcore.fit.gauss_newton import refine
-from smplcore.fit.initialize import kabsch, shape_and_translation
-from smplcore.fit.result import FitResult, as_array, params_to_state, single_threaded_blas, state_to_params
-from smplcore.fit.rotations import rotation_log
-from smplcore.fit.solver import Objective, State
+from smplcore.fit.initialize import shape_and_translation
+from smplcore.fit.joint_init import initial_state, joint_shape_and_translation
+from smplcore.fit.plausibility import TOLERANCE, assess, warn_implausible
+from smplcore.fit.prior_terms import PoseTerms, gmm_prior
+from smplcore.fit.result import FitResult, params_to_state, single_threaded_blas, state_to_params
+from smplcore.fit.solver import Objective, State, residual_cost
 from smplcore.fit.vertices import _weights, coefficient_masks
+
+#: Default weight of the joint limits in :func:`fit_joints` (m² per rad²).
+JOINT_LIMITS_WEIGHT = 1.0
+#: Default weight of a pose mixture in :func:`fit_joints` (m² per nat), when one is given.
+GMM_WEIGHT = 1e-4
 
 
 def joint_points(body: FitBody, joint_names: Any, count: int) -> np.ndarray:
@@ -56,67 +64,6 @@ def joint_points(body: FitBody, joint_names: Any, count: int) -> np.ndarray:
     return np.asarray(ids, np.int64)
 
 
-def _smallest_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) smallest rotations taking directions ``a`` to ``b`` (..., 3)."""
-    a = a / np.maximum(np.linalg.norm(a, axis=-1, keepdims=True), 1e-12)
-    b = b / np.maximum(np.linalg.norm(b, axis=-1, keepdims=True), 1e-12)
-    axis = np.cross(a, b)
-    s = np.linalg.norm(axis, axis=-1)
-    c = np.sum(a * b, axis=-1)
-    angle = np.arctan2(s, c)
-    unit = axis / np.maximum(s, 1e-12)[..., None]
-    from smplcore.engine import rodrigues
-
-    return rodrigues(unit * angle[..., None])
-
-
-def bone_rotations(body: FitBody, point_ids: np.ndarray, targets: np.ndarray, state: State) -> State:
-    """Local rotations aligning each joint's rest bones to the target bones (twist from the parent)."""
-    batch = len(targets)
-    jrest = body.joint_template + np.einsum("jck,bk->bjc", body.joint_shape, state.coeffs)
-    target_of = {int(p) - body.num_vertices: i for i, p in enumerate(point_ids) if p >= body.num_vertices}
-    children: dict[int, list[int]] = {}
-    for j, p in enumerate(body.parents):
-        if p >= 0:
-            children.setdefault(int(p), []).append(j)
-
-    def observed_below(j: int) -> list[int]:
-        """The nearest observed joints below ``j`` (one per child branch)."""
-        out = []
-        for c in children.get(j, []):
-            out.extend([c] if c in target_of else observed_below(c))
-        return out
-
-    world = np.empty((batch, body.num_joints, 3, 3))
-    for j in body.tree.order:
-        p = body.parents[j]
-        inherited = np.broadcast_to(np.eye(3), (batch, 3, 3)) if p < 0 else world[:, p]
-        below = observed_below(j) if j in target_of else []
-        if not below:
-            world[:, j] = inherited
-            continue
-        src = np.stack([jrest[:, c] - jrest[:, j] for c in below], axis=1)  # (B, n, 3)
-        src = np.einsum("bcd,bnd->bnc", inherited, src)
-        dst = np.stack([targets[:, target_of[c]] - targets[:, target_of[j]] for c in below], axis=1)
-        if len(below) >= 2:
-            zero = np.zeros((batch, 1, 3))
-            rot, strength = kabsch(
-                np.concatenate([zero, src], 1), np.concatenate([zero, dst], 1), np.ones((batch, len(below) + 1))
-            )
-            single = _smallest_rotation(src.mean(1), dst.mean(1))
-            rot = np.where((strength > 1e-8)[:, None, None], rot, single)
-        else:
-            rot = _smallest_rotation(src[:, 0], dst[:, 0])
-        world[:, j] = rot @ inherited
-    local = np.empty_like(world)
-    for j in body.tree.order:
-        p = body.parents[j]
-        local[:, j] = world[:, j] if p < 0 else np.swapaxes(world[:, p], -1, -2) @ world[:, j]
-    state = state.copy()
-    state.pose = body.pose_from_full(rotation_log(local))
-    return state
-
-
 @single_threaded_blas
 def fit_joints(
     model: Any,
@@ -130,6 +77,10 @@ def fit_joints(
     fit_transl: bool = True,
     shape_prior: float = 1e-4,
     pose_prior: float = 1e-4,
+    joint_limits: float = JOINT_LIMITS_WEIGHT,
+    bending: float = 0.0,
+    gmm: Any = None,
+    gmm_weight: float = GMM_WEIGHT,
     smoothness: float = 0.0,
     init: dict[str, Any] | None = None,
     max_iter: int = 30,
@@ -142,16 +93,24 @@ def fit_joints(
     Parameters
     ----------
     model : a torch model of :func:`smplcore.create` or a :class:`smplcore.BodyModel`.
-    joints : (B, n, 3) target joints (metres); a sequence is B = T frames.
+    joints : (B, n, 3) target joints (metres); a sequence is B = T frames. NaN marks a missing joint (a
+        marker lost in some frames): it is left out of that body's fit (``mask``); a body needs 3 joints.
     joint_names : the model's output-joint names of the n targets (``model.joint_names``); default the
         first n output joints (SMPL's first 22 for HumanML3D). Skeleton joints and vertex joints (nose,
         toes, fingertips) can be fitted; landmarks cannot.
-    joint_weights : (n,) or (B, n) non-negative weights (zero for missing joints).
+    joint_weights : (n,) or (B, n) non-negative weights (zero for unused joints).
     betas, fit_betas, share_betas, fit_transl, init : as in :func:`fit_vertices`. For a sequence of
         one person pass ``share_betas=True``.
     shape_prior : weight of Σ β² (m² per unit²): joints alone determine shape weakly.
     pose_prior : weight of Σ θ² (m² per rad²): fixes the twists that joints do not determine (about
         bones with one observed child, and joints without observed children) at the rest pose's.
+    joint_limits : weight (m² per rad²) of the anatomical joint limits (:data:`smplcore.fit.priors.JOINT_LIMITS`;
+        elbows and knees bend one way): strong enough that a target the model cannot reach with a plausible
+        pose (a torso shorter than the shape space holds) is missed rather than met by folding the spine.
+        0 turns them off.
+    bending : weight of the elbow/knee hinge prior alone (the limits hold it already).
+    gmm, gmm_weight : a pose mixture (:class:`GMMPrior`, a path to SMPLify's ``gmm_08.pkl``) and its weight
+        (m² per nat); off by default.
     smoothness : weight of Σ_t |θ_t − θ_{t−1}|² (m² per rad²) over consecutive bodies of the batch
         (a sequence), solved by rounds of per-frame fits with the neighbours' poses as the prior centre
         (``smoothing_rounds`` of them).
@@ -163,9 +122,11 @@ def fit_joints(
 
     Returns
     -------
-    FitResult with ``params`` and ``joint_error`` (B,) (metres). Targets whose size is more than 10x off the
-    model's (millimetres, centimetres) are refused with a ValueError naming ``joints``; bodies left further
-    from their targets than half the targets' spread are flagged not converged, with a warning; a fit that
+    FitResult with ``params``, ``joint_error`` (B,) (metres, mean over the joints used), ``point_error``
+    (B, n) and ``mask`` (B, n), and ``plausibility`` (body joints outside their anatomical limits; an
+    :class:`ImplausibleFitWarning` names them). Targets whose size is more than 10x off the model's
+    (millimetres, centimetres) are refused with a ValueError naming ``joints``; bodies left further from
+    their targets than half the targets' spread are flagged not converged, with a warning; a fit that
     would come out non-finite raises :class:`smplcore.fit.FitError` (never a NaN result).
 
     Examples
@@ -179,16 +140,97 @@ def fit_joints(
     True
     """
     body = FitBody.from_model(model)
-    shape_prior, pose_prior, smoothness = checks.options(
-        "weight", {"shape_prior": shape_prior, "pose_prior": pose_prior, "smoothness": smoothness}
-    ).values()
+    weights_ = checks.options(
+        "weight",
+        dict(shape_prior=shape_prior, pose_prior=pose_prior, joint_limits=joint_limits, bending=bending,
+             gmm_weight=gmm_weight, smoothness=smoothness),
+    )  # fmt: skip
+    shape_prior, pose_prior, smoothness = weights_["shape_prior"], weights_["pose_prior"], weights_["smoothness"]
     tol = checks.positive("tol", tol)
     max_iter, smoothing_rounds = checks.options(
         "iterations", {"max_iter": max_iter, "smoothing_rounds": smoothing_rounds}
     ).values()
     workers = checks.workers(workers)
     init = checks.init_params(init, body)
-    jt = as_array(joints, "joints")
+    jt, present = target_joints(joints)
+    batch, count = jt.shape[:2]
+    ids = joint_points(body, joint_names, count)
+    weights = _weights(joint_weights, "joint_weights", batch, count) * present
+    few = np.flatnonzero((weights > 0).sum(1) < 3)
+    if len(few):
+        raise ValueError(
+            f"joints, joint_weights: bodies {few[:10].tolist()} ({len(few)} of {batch}) have fewer than 3 joints "
+            "present with positive weight (NaN marks a missing joint); every body needs at least 3 joints"
+        )
+    rest = pose_points(body, body.points(ids), body.full_pose(np.zeros((1, body.num_pose))),
+                       np.zeros((1, body.num_coeffs)), np.zeros((1, 3))).points[0]  # fmt: skip
+    checks.check_scale("joints", jt, rest, weights > 0)
+    free, shared = coefficient_masks(body, fit_betas, False, share_betas)
+    start = params_to_state(body, {**(init or {}), **({} if betas is None else {"betas": betas})}, batch)
+    prior = body.pose_prior_weights(pose_prior)
+    terms = PoseTerms.of(body, weights_["joint_limits"], weights_["bending"], gmm_prior(gmm), weights_["gmm_weight"])
+    obj = Objective(body.points(ids), jt, weights, free, shared, fit_transl, shape_prior, prior, pose_terms=terms)
+    state = start if init is not None else _start(body, ids, obj, start)
+    dtype = np.float64  # 22 points: precision is free
+    state, _, _, converged, iterations = refine(
+        body, obj, state, dtype=dtype, max_iter=max_iter, tol=tol, workers=workers
+    )
+    if smoothness and batch > 1:
+        for _ in range(smoothing_rounds):
+            centre, weight = _neighbour_prior(state.pose, smoothness, prior)
+            obj_s = Objective(**{**obj.__dict__, "pose_prior": weight, "pose_mean": centre})
+            state, _, _, converged, more = refine(body, obj_s, state, dtype=dtype, max_iter=5, tol=tol, workers=workers)
+            iterations += more
+    posed = pose_points(body, body.points(ids), body.full_pose(state.pose), state.coeffs, state.transl).points
+    mask = weights > 0
+    dist = np.linalg.norm(posed - jt, axis=-1)
+    error = (dist * mask).sum(1) / mask.sum(1)
+    converged = checks.flag_gross(converged, error, checks.spread_of(jt, mask), "fit_joints", "m")
+    params = state_to_params(body, model, state)
+    result = FitResult(
+        params=params,
+        joint_error=error,
+        converged=converged,
+        iterations=iterations,
+        point_error=np.where(mask, dist, np.nan),
+        mask=mask,
+        plausibility=assess(body, _body_pose(body, state)),
+        bones=bone_report(body, ids, jt, mask, state.coeffs),
+    )
+    result = checks.finite_result(result, "fit_joints")
+    warn_unreachable(result.bones, "fit_joints")
+    warn_implausible(result.plausibility, "fit_joints")
+    return result
+
+
+def _start(body: FitBody, ids: np.ndarray, obj: Objective, start: State) -> State:
+    """The closed-form start (:mod:`smplcore.fit.joint_init`); with joint limits, also that start with the body
+    joints clipped into their limits (shape and translation solved again), each body taking the one of lower
+    cost: a target bent past the limits is approached from inside them."""
+    state = initial_state(body, ids, obj, start)
+    terms = obj.pose_terms
+    if terms is None or not terms.limits:
+        return state
+    clipped = state.copy()
+    slack = np.radians(TOLERANCE)  # a start a little past a limit is left (a twist the bones do not show)
+    clipped.pose[:, terms.cols] = np.clip(state.pose[:, terms.cols], terms.lo - slack, terms.hi + slack)
+    clipped = shape_and_translation(body, obj, clipped)
+    better = residual_cost(body, obj, clipped) < residual_cost(body, obj, state)
+    if not better.any():
+        return state
+    state.put(np.flatnonzero(better), clipped.take(np.flatnonzero(better)))
+    return joint_shape_and_translation(body, obj, state) if obj.shared.any() else state
+
+
+def target_joints(joints: Any) -> tuple[np.ndarray, np.ndarray]:
+    """(B, n, 3) float64 targets with missing joints (NaN in any coordinate) set to zero, and (B, n) which
+    are present; infinite values and bodies with no joint at all are refused, naming ``joints``."""
+    if hasattr(joints, "detach"):
+        joints = joints.detach().cpu().numpy()
+    try:
+        jt = np.array(joints, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ShapeError(f"joints: expected a numeric array, got {type(joints).__name__}") from exc
     if jt.ndim == 2:
         jt = jt[None]
     if jt.ndim != 3 or jt.shape[2] != 3:
@@ -197,40 +239,25 @@ def fit_joints(
     checks.nonempty_batch("joints", batch)
     if count < 3:
         raise ShapeError(f"joints: expected at least 3 joints per body, got {count}")
-    ids = joint_points(body, joint_names, count)
-    weights = _weights(joint_weights, "joint_weights", batch, count)
-    if np.any((weights > 0).sum(1) < 3):
-        raise ValueError("joint_weights: every body needs at least 3 joints with positive weight")
-    rest = pose_points(body, body.points(ids), body.full_pose(np.zeros((1, body.num_pose))),
-                       np.zeros((1, body.num_coeffs)), np.zeros((1, 3))).points[0]  # fmt: skip
-    checks.check_scale("joints", jt, rest, weights > 0)
-    free, shared = coefficient_masks(body, fit_betas, False, share_betas)
-    start = params_to_state(body, {**(init or {}), **({} if betas is None else {"betas": betas})}, batch)
-    prior = body.pose_prior_weights(pose_prior)
-    obj = Objective(body.points(ids), jt, weights, free, shared, fit_transl, shape_prior, prior)
-    state = start
-    if init is None:
-        for _ in range(2):
-            state = bone_rotations(body, ids, jt, state)
-            state = shape_and_translation(body, obj, state)
-    dtype = np.float64  # 22 points: precision is free
-    state, _, _, converged, iterations = refine(
-        body, obj, state, dtype=dtype, max_iter=max_iter, tol=tol, workers=workers
-    )
-    if smoothness and batch > 1:
-        for _ in range(smoothing_rounds):
-            centre, weight = _neighbour_prior(state.pose, smoothness, prior)
-            obj_s = Objective(body.points(ids), jt, weights, free, shared, fit_transl, shape_prior, weight, centre)
-            state, _, _, converged, more = refine(body, obj_s, state, dtype=dtype, max_iter=5, tol=tol, workers=workers)
-            iterations += more
-    posed = pose_points(body, body.points(ids), body.full_pose(state.pose), state.coeffs, state.transl).points
-    dist = np.linalg.norm(posed - jt, axis=-1)
-    error = (dist * (weights > 0)).sum(1) / (weights > 0).sum(1)
-    converged = checks.flag_gross(converged, error, checks.spread_of(jt, weights > 0), "fit_joints", "m")
-    result = FitResult(
-        params=state_to_params(body, model, state), joint_error=error, converged=converged, iterations=iterations
-    )
-    return checks.finite_result(result, "fit_joints")
+    if np.isinf(jt).any():
+        raise ValueError(f"joints: {int(np.isinf(jt).sum())} infinite value(s); mark a missing joint with NaN")
+    present = ~np.isnan(jt).any(axis=-1)
+    empty = np.flatnonzero(~present.any(axis=1))
+    if len(empty):
+        raise ValueError(
+            f"joints: bodies {empty[:10].tolist()} ({len(empty)} of {batch}) are all NaN (no joint present); "
+            "drop those frames"
+        )
+    jt[~present] = 0.0
+    return jt, present
+
+
+def _body_pose(body: FitBody, state: State) -> np.ndarray:
+    """(B, 3 J) the ``body_pose`` block of a state ((B, 0) for models without one)."""
+    for block in body.blocks:
+        if block.name == "body_pose":
+            return state.pose[:, block.start : block.start + block.width]
+    return state.pose[:, :0]
 
 
 def _neighbour_prior(pose: np.ndarray, smoothness: float, prior: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:

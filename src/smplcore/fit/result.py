@@ -11,6 +11,7 @@ import numpy as np
 
 from smplcore.errors import ShapeError
 from smplcore.fit.body import FitBody
+from smplcore.fit.plausibility import Plausibility
 from smplcore.fit.solver import State
 from smplcore.model.params import fit_width
 
@@ -27,7 +28,16 @@ class FitResult:
     vertex_error : (B,) mean distance (metres) between the fitted and the target vertices, or None.
     joint_error : (B,) mean distance (metres) between the fitted and the target joints, or None.
     reprojection_error : (B,) mean distance (pixels) of the projected keypoints, or None.
-    converged : (B,) whether the solver converged for each body.
+    point_error : (B, n) distance of each target point from the fitted body's (metres for 3D targets, pixels
+        for 2D keypoints), NaN where the point was not used (zero weight, missing marker), or None.
+    mask : (B, n) bool, the target points the fit used (positive weight, finite), or None.
+    converged : (B,) whether the optimiser stopped because it converged (relative cost decrease or step
+        below its tolerance), not because it ran out of iterations, and the body is not grossly far from
+        its targets (:func:`smplcore.fit.checks.flag_gross`).
+    plausibility : a :class:`~smplcore.fit.plausibility.Plausibility` (which body joints lie outside their
+        anatomical limits, by how many degrees per axis), or None.
+    bones : for a fit of 3D joints, a :class:`~smplcore.fit.bones.BoneReport` (target bone lengths against
+        the fitted bodies', the bones out of the shape space's reach), or None.
     iterations : refinement iterations run.
     camera : a 2D fit's :class:`~smplcore.fit.Camera` (with the estimated focal length when it was
         estimated), or None.
@@ -47,6 +57,10 @@ class FitResult:
         iterations: int = 0,
         camera: Any = None,
         *,
+        point_error: np.ndarray | None = None,
+        mask: np.ndarray | None = None,
+        plausibility: Plausibility | None = None,
+        bones: Any = None,
         measure: Callable[[], tuple[np.ndarray | None, np.ndarray | None]] | None = None,
     ) -> None:
         self.params = params
@@ -56,6 +70,8 @@ class FitResult:
         self.converged = np.zeros(0, bool) if converged is None else converged
         self.iterations = iterations
         self.camera = camera
+        self.point_error, self.mask, self.plausibility = point_error, mask, plausibility
+        self.bones = bones
 
     def _measured(self) -> None:
         if self._measure is not None:
@@ -90,6 +106,12 @@ class FitResult:
     def all_converged(self) -> bool:
         return bool(np.all(self.converged))
 
+    @property
+    def plausible(self) -> np.ndarray | None:
+        """(B,) whether each body's joints lie within their anatomical limits (see :attr:`plausibility`),
+        or None when the fit did not assess them."""
+        return None if self.plausibility is None else self.plausibility.plausible
+
     def __repr__(self) -> str:
         def show(value: Any) -> str:
             return "None" if value is None else f"array(shape={tuple(np.shape(value))})"
@@ -102,7 +124,13 @@ class FitResult:
         return (
             f"FitResult(params={sorted(self.params)}, {errors}, reprojection_error={show(self.reprojection_error)}, "
             f"converged={int(np.sum(self.converged))}/{len(self.converged)}, iterations={self.iterations}, "
-            f"camera={self.camera!r})"
+            f"camera={self.camera!r}"
+            + (
+                ""
+                if self.plausibility is None
+                else f", plausible={self.plausibility.plausible.sum()}/{len(self.converged)}"
+            )
+            + ")"
         )
 
 

@@ -10,6 +10,7 @@ couples them through a Schur complement.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -56,6 +57,8 @@ class Objective:
     shape_prior : weight of Σ c_k² over the fitted coefficients.
     pose_prior : (Q,), (B, 1) or (B, Q) weights of Σ (q_k − μ_k)² (None: none).
     pose_mean : (B, Q) the centre μ of the pose prior (None: zero).
+    pose_terms : the non-quadratic pose priors (limits, hinge, mixture), a
+        :class:`~smplcore.fit.prior_terms.PoseTerms`, or None.
     """
 
     points: Points
@@ -67,6 +70,7 @@ class Objective:
     shape_prior: float = 0.0
     pose_prior: np.ndarray | None = None
     pose_mean: np.ndarray | None = None  # (B, Q) the pose prior's centre (None: zero)
+    pose_terms: Any = None  # PoseTerms or None
 
 
 def _columns(body: FitBody, obj: Objective) -> np.ndarray:
@@ -103,6 +107,8 @@ def _prior_cost(obj: Objective, state: State) -> np.ndarray:
     if obj.pose_prior is not None:
         d = state.pose if obj.pose_mean is None else state.pose - obj.pose_mean
         cost = cost + np.sum(obj.pose_prior * d * d, axis=1)
+    if obj.pose_terms is not None:
+        cost = cost + obj.pose_terms.cost(state.pose)
     return cost
 
 
@@ -154,6 +160,7 @@ def normal_equations(
                 grad[s + b] = transform.T @ (jac[b].T @ (res[b] * sw[b]))
             cost[s + b] = res[b] @ res[b]
     # priors
+    q_ = body.num_pose
     x = _flat(state)
     if obj.pose_mean is not None:
         x[:, : body.num_pose] -= obj.pose_mean
@@ -161,7 +168,10 @@ def normal_equations(
     prior = _prior_diagonal(obj, cols, body.num_pose, body.num_coeffs, batch)
     grad = grad + prior * x
     cost = cost + _prior_cost(obj, state)
-    return (hess + prior[:, :, None] * np.eye(len(cols)) if hessian else None), grad, cost
+    hess = hess + prior[:, :, None] * np.eye(len(cols)) if hessian else None
+    if obj.pose_terms is not None:
+        obj.pose_terms.add_system(state.pose, np.where(cols < q_, cols, -1), grad, hess)
+    return hess, grad, cost
 
 
 def _step(hess: np.ndarray, grad: np.ndarray, damping: np.ndarray, shared_cols: np.ndarray) -> np.ndarray:

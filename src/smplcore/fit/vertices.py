@@ -12,6 +12,7 @@ from smplcore.fit.body import FitBody, pose_points
 from smplcore.fit.gauss_newton import refine
 from smplcore.fit.initialize import initialize
 from smplcore.fit.parallel import chunks, map_chunks
+from smplcore.fit.plausibility import Plausibility, assess
 from smplcore.fit.result import (
     FitResult,
     as_array,
@@ -328,6 +329,9 @@ def fit_vertices(
     -------
     FitResult with ``params``, ``vertex_error`` (B,) and ``joint_error`` (B,) (with ``joints``); without
     the whole-set stage (``max_iter=0`` or ``exact=False``) the errors are measured when first read.
+    ``mask`` (B, n_v + n_j) marks the targets used (positive weight) and ``point_error`` (B, n_v + n_j)
+    gives each one's distance (metres; NaN where unused; None without the whole-set stage);
+    ``plausibility`` reports joints outside their anatomical limits (no warning: the targets decide).
 
     Examples
     --------
@@ -414,20 +418,37 @@ def fit_vertices(
             return out
 
         result = FitResult(
-            params=state_to_params(body, model, state), converged=converged, iterations=iterations, measure=measure
+            params=state_to_params(body, model, state),
+            converged=converged,
+            iterations=iterations,
+            mask=weights > 0,
+            plausibility=_plausibility(body, state),
+            measure=measure,
         )
         return checks.finite_result(result, "fit_vertices")
     vertex_error, joint_error = errors(dist)
     spread = checks.spread_of(verts, weights[:, : len(ids)] > 0)
     converged = checks.flag_gross(converged, vertex_error, spread, "fit_vertices", "m")
+    mask = weights > 0
     result = FitResult(
         params=state_to_params(body, model, state),
         vertex_error=vertex_error,
         joint_error=joint_error,
         converged=converged,
         iterations=iterations,
+        point_error=np.where(mask, dist, np.nan),
+        mask=mask,
+        plausibility=_plausibility(body, state),
     )
     return checks.finite_result(result, "fit_vertices")
+
+
+def _plausibility(body: FitBody, state: State) -> Plausibility:
+    """The fitted bodies' joints against their anatomical limits (reported, not warned about: the target
+    mesh decides the pose)."""
+    block = next((b for b in body.blocks if b.name == "body_pose"), None)
+    pose = state.pose[:, :0] if block is None else state.pose[:, block.start : block.start + block.width]
+    return assess(body, pose)
 
 
 def _vertex_ids(value: Any) -> np.ndarray:
