@@ -23,6 +23,7 @@ from smplcore.fit.body import FitBody
 from smplcore.fit.camera import Camera
 from smplcore.fit.focal import FOCAL_PRIOR, estimate_focal_length
 from smplcore.fit.placement import HEAD, TORSO, place
+from smplcore.fit.plausibility import assess, warn_implausible
 from smplcore.fit.priors import BENDING, GMMPrior, joint_limits
 from smplcore.fit.reprojection import KeypointMap, Terms, levenberg_marquardt, reprojection
 from smplcore.fit.result import FitResult, as_array, params_to_state, single_threaded_blas, state_to_params
@@ -299,7 +300,9 @@ def fit_keypoints(
     Returns
     -------
     FitResult with ``params``, ``reprojection_error`` (B,) confidence-weighted mean pixels over the
-    keypoints used,
+    keypoints used, ``point_error`` (B, K) pixels of each keypoint (NaN where not used), ``mask`` (B, K) the
+    keypoints used, ``plausibility`` (body joints outside their anatomical limits; an
+    :class:`~smplcore.fit.plausibility.ImplausibleFitWarning` names them),
     ``converged`` (B,) and ``camera`` (the given one, or with the estimated focal length). Bodies whose mean
     reprojection error exceeds half their keypoints' spread are flagged not converged, with a warning; a fit
     that would come out non-finite raises :class:`smplcore.fit.FitError` (never a NaN result).
@@ -397,5 +400,10 @@ def fit_keypoints(
         converged=converged,
         iterations=iterations,
         camera=camera,
+        point_error=np.where(visible, dist, np.nan),
+        mask=visible,
+        plausibility=assess(body, state.pose[:, bp.start : bp.start + bp.width]),
     )
-    return checks.finite_result(result, "fit_keypoints")
+    checks.finite_result(result, "fit_keypoints")
+    warn_implausible(result.plausibility, "fit_keypoints")
+    return result
