@@ -34,7 +34,20 @@ LAYERS: list[set[str]] = [
         "joint_names",
     },
     # consumers: they use the public API of the layers below and of each other, never internals
-    {"keypoints", "fit", "motion", "export", "render", "view", "jobs", "measure", "join", "mesh_args", "cli_options"},
+    {
+        "keypoints",
+        "fit",
+        "motion",
+        "export",
+        "render",
+        "view",
+        "jobs",
+        "measure",
+        "join",
+        "skeletons",
+        "mesh_args",
+        "cli_options",
+    },
     # applications
     {"cli", "cli_options", "demo", "__main__", "<root>"},
 ]

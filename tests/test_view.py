@@ -338,3 +338,28 @@ def test_target_keypoints_follow_the_timeline(tmp_path):
         np.testing.assert_allclose(v._nodes[0]["keypoints"].points, targets[0], atol=1e-6)
         v.controls.frame.value = 9
         np.testing.assert_allclose(v._nodes[0]["keypoints"].points, targets[9], atol=1e-6)
+
+
+def test_a_refused_browser_value_is_put_back_later_and_never_over_a_newer_move(viewer):
+    """viser sets a slider from each browser message in its own thread and runs the callbacks in a pool: the
+    put-back of a refused (NaN) value must not overwrite a valid move that arrived meanwhile."""
+    from types import SimpleNamespace
+
+    from smplcore.view.controls import PUT_BACK_DELAY
+
+    c, browser = viewer.controls, SimpleNamespace(client=object())
+    slider = c.betas[2]
+    with c._silent():  # as viser's message thread sets it
+        slider.value = float("nan")
+    assert c._checked(slider, 0.5, -3.0, 3.0, browser) is None
+    with c._silent():
+        slider.value = 2.0  # the next message, arriving before the put-back
+    time.sleep(4 * PUT_BACK_DELAY)
+    assert slider.value == 2.0
+    with c._silent():
+        slider.value = float("nan")
+    assert c._checked(slider, 0.5, -3.0, 3.0, browser) is None
+    deadline = time.monotonic() + 30
+    while slider.value != 0.5 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert slider.value == 0.5  # nothing newer came: the slider shows the body's value again

@@ -20,11 +20,10 @@ EXTRAS = {
     "ray": "ray",
     "viser": "view",
     "imageio_ffmpeg": "view",
-    "bvhio": "view",
     "threadpoolctl": "fit",
 }
 
-_DISPLAY = {"PIL": "Pillow", "OpenGL": "PyOpenGL", "pxr": "usd-core"}
+_DISPLAY = {"PIL": "Pillow", "OpenGL": "PyOpenGL", "pxr": "usd-core", "ray": "Ray"}
 
 #: the tested torch release (the README's install line)
 TORCH_INSTALL = "pip install torch==2.13.0"

@@ -9,19 +9,25 @@ outputs are kept unless ``--overwrite``), ``--workers`` processes, bad inputs re
 from __future__ import annotations
 
 import argparse
-import contextlib
 import errno
 import json
-import signal
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from smplcore.fit.cli_types import _extrinsics, _floats, _person, _positive, _positive_floats, _positive_int
+from smplcore.fit.cli_types import (
+    _extrinsics,
+    _floats,
+    _person,
+    _positive,
+    _positive_floats,
+    _positive_int,
+    _skeleton,
+    _units,
+)
 
 EPILOG = """\
 examples:
@@ -30,12 +36,13 @@ examples:
   smplcore fit openpose_frames/ -o fit.npz --image-size 1920,1080 --estimate-focal
   smplcore fit openpose_frames/ -o fit.npz --image-size 1920,1080 --vposer V02_05/
   smplcore fit joints.npy -o fit.npz --convention coco17        # or --joint-names pelvis,left_hip,...
+  smplcore fit clip.bvh.gz -o fit.npz                           # skeleton and units detected (--skeleton, --units)
   smplcore fit smplh_motion.npz -o smplx.npz --model-type smplx --model-path models/ --source-model-path models/
   smplcore fit inputs/ -o fits/ --image-size 1920,1080 --workers 2
   smplcore fit inputs/ -o fits/ --image-size 1920,1080 --ray          # Ray tasks (local, or --ray auto)
 Exit status: 0 all fitted, 1 inputs skipped (bad input), 2 bad arguments. See docs/fit.md."""
 
-SUFFIXES = (".json", ".npy", ".npz")
+SUFFIXES = (".json", ".npy", ".npz", ".bvh", ".bvh.gz")
 MANIFEST = "fit_manifest.json"
 
 
@@ -45,8 +52,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "fit",
         help="fit a body model to 2D keypoints, 3D joints or another model's motion; write AMASS-style .npz",
         description="Fit model parameters to INPUT (an OpenPose JSON folder, a COCO keypoint .json, a .npy of "
-        "joints (T, n, 3), an AMASS-style .npz of another model, or a folder of such inputs) and write an "
-        "AMASS-style .npz that smplcore export / process read.",
+        "joints (T, n, 3), a BVH motion capture (.bvh, .bvh.gz), an AMASS-style .npz of another model, or a folder "
+        "of such inputs) and write an AMASS-style .npz that smplcore export / process read.",
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -62,6 +69,16 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--source-model-path", default=None, help="conversion: the source motion's model (default: open)")
     p.add_argument("--convention", default=None, help="keypoint/joint convention (default: the reader's)")
     p.add_argument("--joint-names", default=None, help=".npy joints: the model joint names, comma-separated")
+    p.add_argument(
+        "--skeleton", type=_skeleton, default=None, metavar="NAME",
+        help="BVH: the skeleton map (default: detected from the joint names); .npy: read the points as this keypoint "
+        "skeleton. Known: cmu_daz, cmu_mb, cmu_max, fair, h36m17, h36m32, mediapipe33, openpose25",
+    )  # fmt: skip
+    p.add_argument(
+        "--units", type=_units, default=None, metavar="UNITS",
+        help="BVH / .npy joints: cm, m, mm, in, cmu (CMU ASF, 0.0254/0.45 m) or metres per unit (default: told "
+        "from the leg length, and said; centimetres are converted with a message)",
+    )  # fmt: skip
     p.add_argument("--focal", type=_positive_floats, default=None, help="2D: focal length f or fx,fy (pixels)")
     p.add_argument("--center", type=_floats, default=None, help="2D: principal point cx,cy (pixels)")
     p.add_argument(
@@ -81,7 +98,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     p.add_argument("--vposer", default=None, metavar="PATH", help="2D: VPoser v2 pose prior (V02_05/ or its .ckpt)")
     p.add_argument("--gmm", default=None, metavar="PATH", help="2D: SMPLify's gmm_08.pkl pose prior")
-    p.add_argument("--fps", type=_positive, default=30.0, help="frame rate written to the output (default 30)")
+    p.add_argument("--fps", type=_positive, default=30.0, help="output frame rate (default 30; a BVH: its own)")
     p.add_argument(
         "--person", type=_person, default=0, metavar="N|all",
         help="OpenPose: the people are tracked over the frames; N picks track N (0, the default: the person seen in "
@@ -189,6 +206,8 @@ def _settings(args: argparse.Namespace):
         max_iter=args.max_iter,
         overlay=None if args.overlay is None else str(args.overlay),
         image=None if args.image is None else str(args.image),
+        skeleton=args.skeleton,
+        units=args.units,
     )
     if settings.vposer or settings.gmm:  # read once here: a bad prior file is one clear error, not one per input
         from smplcore.fit.inputs import _priors
@@ -213,7 +232,7 @@ def find_inputs(folder: Path) -> list[Path]:
     for p in sorted(folder.iterdir()):
         if p.name.startswith(".") or p.name == MANIFEST:
             continue
-        if (p.is_file() and p.suffix.lower() in SUFFIXES) or (p.is_dir() and _is_single(p)):
+        if (p.is_file() and p.name.lower().endswith(SUFFIXES)) or (p.is_dir() and _is_single(p)):
             found.append(p)
     return found
 
@@ -245,15 +264,31 @@ def fit_one(source: str, output: str, settings: Any) -> dict[str, Any]:
     return entry
 
 
-def _init_worker() -> None:
-    """A worker: one BLAS thread when threadpoolctl is installed (optional), and Ctrl-C left to the parent,
-    which stops the batch (a worker's own KeyboardInterrupt would only print a traceback)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+_SETTINGS: list[Any] = []
+
+
+def _remember(settings: Any) -> None:
+    """The run's settings, for :func:`_fit_item` (in this process: no other change)."""
+    _SETTINGS[:] = [settings]
+
+
+def _setup_worker(settings: Any) -> None:
+    """A worker process: the run's settings, and one BLAS thread when threadpoolctl is installed (optional)."""
+    _remember(settings)
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:
         return
     threadpool_limits(1)
+
+
+def _fit_item(item: tuple[str, str]) -> dict[str, Any]:
+    return fit_one(item[0], item[1], _SETTINGS[0])
+
+
+def _dead(item: tuple[str, str], reason: str) -> dict[str, Any]:
+    why = "its worker process died (out of memory? killed?)" if reason == "died" else reason
+    return {"input": item[0], "output": item[1], "status": "skipped", "reason": why}
 
 
 # Errors writing an output that every later output would meet too: the batch stops (finished outputs are kept).
@@ -276,7 +311,7 @@ def run(args: argparse.Namespace) -> int:
     if not source.is_dir():  # a FIFO, device or socket: refused without opening it
         from smplcore.io import open_input
 
-        open_input(source, "an input file (.json, .npy, .npz) or folder")[0].close()
+        open_input(source, "an input file (.json, .npy, .npz, .bvh) or folder")[0].close()
     _check_camera(args, source)
     from smplcore.fit.inputs2d import check_overlay
 
@@ -290,11 +325,13 @@ def run(args: argparse.Namespace) -> int:
         tasks = [(source, out)]
         manifest = None
     else:
+        from smplcore.fit.skeleton_inputs import input_stem
+
         inputs = find_inputs(source)
         if not inputs:
-            raise ValueError(f"{source}: no inputs (.json, .npy, .npz files or OpenPose folders)")
+            raise ValueError(f"{source}: no inputs (.json, .npy, .npz, .bvh(.gz) files or OpenPose folders)")
         _output_folder(out)
-        tasks = [(p, out / (p.stem if p.is_file() else p.name)) for p in inputs]
+        tasks = [(p, out / (input_stem(p) if p.is_file() else p.name)) for p in inputs]
         tasks = [(p, o.with_name(o.name + ".npz")) for p, o in tasks]
         manifest = out / MANIFEST
     entries, todo = [], []
@@ -304,22 +341,24 @@ def run(args: argparse.Namespace) -> int:
         else:
             todo.append((str(src), str(dst)))
     bar = _bar(len(todo), args.no_progress or len(todo) < 2)
+    from smplcore.jobs import Job, remove_orphan_temporaries, run_inline, run_pool, run_ray, worker_context
+
+    job = Job(_fit_item, _dead, _setup_worker, (settings,))
+    stopping = lambda: any(e.get("fatal") for e in entries)  # noqa: E731 -- a full or read-only disk
+    tick = bar.update if bar is not None else lambda: None
     try:
         if args.ray is not None and todo:
-            _run_ray(todo, settings, args.ray, args.workers, entries, bar)
+            run_ray(todo, job, args.ray, args.workers, entries.append, tick, stopping)
         elif args.workers > 1 and len(todo) > 1:
-            _run_pool(todo, settings, args.workers, entries, bar)
+            run_pool(todo, job, args.workers, entries.append, tick, stopping, worker_context(["numpy", "smplcore.fit"]))
         else:
-            for s, d in todo:
-                entries.append(fit_one(s, d, settings))
-                if bar is not None:
-                    bar.update()
-                if entries[-1].get("fatal"):
-                    break
+            run_inline(todo, Job(_fit_item, _dead, _remember, (settings,)), entries.append, tick, stopping)
     except KeyboardInterrupt:
         if bar is not None:
             bar.close()
             bar = None
+        remove_orphan_temporaries({Path(d).parent for _, d in todo})
+        _late_outputs(todo, entries)
         done = sum(e["status"] == "done" for e in entries)
         print(f"smplcore fit: interrupted; {done} output(s) written in this run are kept "
               "(run the same command again to fit the rest)", file=sys.stderr)  # fmt: skip
@@ -341,89 +380,19 @@ def _output_folder(folder: Path) -> None:
         raise ValueError(f"-o/--output: cannot make the folder {folder}: {exc.strerror or exc}") from None
 
 
-def _run_pool(todo: list, settings: Any, workers: int, entries: list, bar: Any) -> None:
-    """The fits in ``workers`` processes; a worker that dies is one skipped input, a fatal write error (full or
-    read-only disk) stops the batch; outputs already written are kept."""
-    pool = ProcessPoolExecutor(workers, initializer=_init_worker)
-    pending = {pool.submit(fit_one, s, d, settings): (s, d) for s, d in todo}
-    try:
-        for fut in as_completed(list(pending)):
-            source, output = pending.pop(fut)
-            try:
-                entries.append(fut.result())
-            except Exception as exc:  # noqa: BLE001 -- a worker that died (BrokenProcessPool) loses one input
-                entries.append({"input": source, "output": output, "status": "skipped",
-                                "reason": f"the worker stopped: {type(exc).__name__}: {exc}"})  # fmt: skip
-            if bar is not None:
-                bar.update()
-            if entries[-1].get("fatal"):
-                break
-    finally:
-        if pending:  # stopped early (Ctrl-C, a full disk): running fits end now; their outputs were never renamed in
-            processes = list((getattr(pool, "_processes", None) or {}).values())
-            pool.shutdown(wait=False, cancel_futures=True)
-            for process in processes:
-                if process.is_alive():
-                    process.terminate()
-            for process in processes:
-                process.join(timeout=10)
-            _remove_partial({Path(d).parent for _, d in todo}, {p.pid for p in processes})
-            for source, output in pending.values():  # renamed into place before its result reached us
-                if Path(output).is_file():
-                    entries.append({"input": source, "output": output, "status": "done",
-                                    "note": "written just before the batch stopped"})  # fmt: skip
-        else:
-            pool.shutdown()
-
-
-def _run_ray(todo: list, settings: Any, address: str, workers: int, entries: list, bar: Any) -> None:
-    """The fits as Ray tasks (a failed task is one skipped input)."""
-    try:
-        import ray
-    except ImportError:
-        raise ValueError("--ray needs Ray, an optional dependency: pip install 'ray'") from None
-    started = not ray.is_initialized()
-    if started:
-        kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
-        if address in ("", "local"):
-            kwargs["num_cpus"] = max(1, workers)
-        else:
-            kwargs["address"] = address
-        ray.init(**kwargs)
-    try:
-        remote = ray.remote(num_cpus=1, max_retries=1)(fit_one)
-        pending = {remote.remote(s, d, settings): (s, d) for s, d in todo}
-        while pending:
-            done, _ = ray.wait(list(pending), num_returns=1)
-            for ref in done:
-                source, output = pending.pop(ref)
-                try:
-                    entries.append(ray.get(ref))
-                except Exception as exc:  # noqa: BLE001 -- one failed task is one skipped input
-                    entries.append({"input": source, "output": output, "status": "skipped",
-                                    "reason": f"Ray task failed: {type(exc).__name__}: {exc}"})  # fmt: skip
-                if bar is not None:
-                    bar.update()
-    finally:
-        if started:
-            ray.shutdown()
-
-
 def _rows(count: int, entry: dict[str, Any]) -> str:
     """``1 frame``, ``3 frames``, ``1 body`` (a COCO file: one row per person of each image)."""
     unit = entry.get("unit", "frames")
     return f"{count} { ({'frames': 'frame', 'bodies': 'body'}.get(unit, unit) if count == 1 else unit) }"
 
 
-def _remove_partial(folders: set[Path], pids: set[int | None]) -> None:
-    """Remove the temporary files of ended workers (their outputs were never renamed into place)."""
-    from smplcore.jobs import TMP_SUFFIX
-
-    for folder in folders:
-        for pid in pids:
-            for tmp in folder.glob(f".*.{pid}-*{TMP_SUFFIX}"):
-                with contextlib.suppress(OSError):
-                    tmp.unlink()
+def _late_outputs(todo: list[tuple[str, str]], entries: list[dict[str, Any]]) -> None:
+    """Entries for outputs renamed into place by a worker just before the batch stopped (no result reached us)."""
+    reported = {e["input"] for e in entries}
+    for source, output in todo:
+        if source not in reported and Path(output).is_file():
+            entries.append({"input": source, "output": output, "status": "done",
+                            "note": "written just before the batch stopped"})  # fmt: skip
 
 
 def _report(
@@ -445,6 +414,8 @@ def _report(
         unit = e.get("error_unit", "")
         scale, shown = (1000.0, "mm") if unit == "m" else (1.0, unit)
         print(f"wrote {e['output']}: {_rows(e['frames'], e)}, mean error {e['mean_error'] * scale:.2f} {shown}")
+        for note in e.get("notes", []):  # what was detected: a BVH's skeleton and units, joints in centimetres
+            print(f"  {e['input']}: {note}")
         if e.get("missing"):
             print(f"  frames without a detection (filled from the nearest frame): {e['missing'][:20]}")
         if e.get("kind") == "openpose" and e.get("people", 1) > 1:

@@ -88,3 +88,24 @@ def _person(text: str) -> int | str:
     if value < 0:
         raise argparse.ArgumentTypeError(f"expected a track number (0, 1, ...) or 'all', got {text!r}")
     return value
+
+
+def _skeleton(text: str) -> str:
+    """A known skeleton map's name (``smplcore.skeletons.skeleton_names()``)."""
+    from smplcore import skeletons
+
+    try:
+        return skeletons.skeleton_map(text).name
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("skeleton: ")) from None
+
+
+def _units(text: str) -> str:
+    """``cm``, ``m``, ``mm``, ``in``, ``cmu``, ``ft`` or metres per unit."""
+    from smplcore import skeletons
+
+    try:
+        skeletons.parse_units(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("units: ")) from None
+    return text

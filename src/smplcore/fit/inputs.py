@@ -3,8 +3,9 @@ one AMASS-style motion ``.npz`` of the fitted model.
 
 Inputs: a folder of OpenPose JSON files (one sequence; its people tracked, ``person`` picks one or
 ``"all"``), a COCO keypoint JSON (every annotated person an independent body with its own shape, in image
-order; :mod:`smplcore.fit.inputs2d`), a ``.npy`` of 3D joints (T, n, 3),
-or an AMASS-style ``.npz`` of another model (converted). The output is what
+order; :mod:`smplcore.fit.inputs2d`), a ``.npy`` of 3D joints (T, n, 3) (units
+checked: :mod:`smplcore.fit.skeleton_inputs`), a BVH motion capture (``.bvh``, ``.bvh.gz``: skeleton and units
+detected, one person), or an AMASS-style ``.npz`` of another model (converted). The output is what
 :func:`smplcore.motion.load_motion` (``smplcore export`` / ``smplcore process``) reads, plus
 ``fit_error`` (T,) (pixels for 2D, metres otherwise), ``fit_converged`` (T,) and ``fit_kind``; for 2D
 inputs also ``fit_focal`` (T, 2), the focal length each frame was fitted with (given or estimated), and the
@@ -53,10 +54,17 @@ class FitSettings:
     extra: dict[str, Any] = field(default_factory=dict)
     overlay: str | None = None  # 2D: a .png of the first image's / frame's fit drawn over ``image``
     image: str | None = None  # 2D: the photo the overlay is drawn on (None: a blank canvas of the image size)
+    skeleton: str | None = None  # BVH / .npy: the skeleton map (None: detected from a BVH's joint names)
+    units: str | None = None  # BVH / .npy: cm, m, mm, in, cmu, ft or metres per unit (None: detected)
 
 
 def input_kind(path: Path) -> str:
-    """``openpose`` (a folder of JSON files), ``coco`` (a JSON file), ``joints`` (``.npy``) or ``motion`` (``.npz``)."""
+    """``openpose`` (a folder of JSON files), ``coco`` (a JSON file), ``joints`` (``.npy``), ``bvh`` (``.bvh``,
+    ``.bvh.gz``) or ``motion`` (``.npz``)."""
+    from smplcore.fit.skeleton_inputs import is_bvh
+
+    if is_bvh(path) and not path.is_dir():
+        return "bvh"
     if path.is_dir():
         if any(p.suffix.lower() == ".json" for p in path.iterdir()):
             return "openpose"
@@ -64,7 +72,9 @@ def input_kind(path: Path) -> str:
     kinds = {".json": "coco", ".npy": "joints", ".npz": "motion"}
     kind = kinds.get(path.suffix.lower())
     if kind is None:
-        raise ValueError(f"{path}: unsupported input {path.suffix!r}; expected an OpenPose folder, .json, .npy or .npz")
+        raise ValueError(
+            f"{path}: unsupported input {path.suffix!r}; expected an OpenPose folder, .json, .npy, .npz or .bvh(.gz)"
+        )
     return kind
 
 
@@ -192,6 +202,8 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
         extra["max_iter"] = settings.max_iter
     labels = None
     unseen: list[str] = []
+    notes: list[str] = []
+    fps = settings.fps
     if kind in ("openpose", "coco"):
         from smplcore.fit.inputs2d import fit_2d
 
@@ -207,10 +219,22 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
             raise ModelFileError(path, f"expected joints of shape (T, J, 3), found {joints.shape}")
         names: Sequence[str] | None = settings.joint_names
         weights = None
-        if names is None and settings.convention is not None:
+        if names is None and settings.convention is not None and settings.skeleton is None:
             names, weights = _convention_joints(model, settings.convention, joints.shape[1])
+        from smplcore.fit.skeleton_inputs import joints_in_metres
+
+        joints, names, weights, notes = joints_in_metres(joints, names, weights, settings, model)
         r = fit.fit_joints(model, joints, names, weights, share_betas=True, smoothness=settings.smoothness, **extra)
         assert r.joint_error is not None  # fit_joints always measures it
+        params, error, converged = {k: np.asarray(v) for k, v in r.params.items()}, r.joint_error, r.converged
+        betas = params["betas"][0]
+    elif kind == "bvh":
+        from smplcore.fit.skeleton_inputs import bvh_targets
+
+        targets = bvh_targets(path, settings, model)
+        notes, fps = list(targets.notes), float(targets.fps or settings.fps)
+        r = fit.fit_joints(model, *targets, share_betas=True, smoothness=settings.smoothness, **extra)
+        assert r.joint_error is not None
         params, error, converged = {k: np.asarray(v) for k, v in r.params.items()}, r.joint_error, r.converged
         betas = params["betas"][0]
     else:
@@ -226,7 +250,7 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
         assert r.vertex_error is not None  # convert always measures it
         params, error, converged = {k: np.asarray(v) for k, v in r.params.items()}, r.vertex_error, r.converged
         betas = params["betas"][0]
-    arrays = _motion_arrays(model, params, betas, settings)
+    arrays = _motion_arrays(model, params, betas, settings, fps)
     arrays.update(fit_error=error, fit_converged=converged, fit_kind=np.array(kind))
     if labels is not None:
         arrays.update(labels)
@@ -242,6 +266,7 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
         "error_unit": "px" if kind in ("openpose", "coco") else "m",
         "unit": "bodies" if labels is not None else "frames",  # COCO, all tracks: one row per person and image
         "images_without_person": unseen,
+        "notes": notes,  # what was detected or converted (a BVH's skeleton and units, joints in centimetres)
     }
     if kind in ("openpose", "coco"):
         summary["people"] = found.tracks if kind == "openpose" else len(error)
@@ -278,7 +303,9 @@ def _convention_joints(model: Any, convention: str, count: int) -> tuple[list[st
     return picked, weights
 
 
-def _motion_arrays(model: Any, params: dict[str, np.ndarray], betas: np.ndarray, settings: FitSettings) -> dict:
+def _motion_arrays(
+    model: Any, params: dict[str, np.ndarray], betas: np.ndarray, settings: FitSettings, fps: float
+) -> dict:
     """AMASS-style arrays of fitted parameters (``poses`` in the model's block order)."""
     from smplcore.motion import POSE_WIDTH
 
@@ -295,7 +322,7 @@ def _motion_arrays(model: Any, params: dict[str, np.ndarray], betas: np.ndarray,
         "betas": np.asarray(betas, np.float64),
         "gender": np.array(settings.gender),
         "surface_model_type": np.array(model_type),
-        ("mocap_frame_rate" if model_type == "smplx" else "mocap_framerate"): np.array(float(settings.fps)),
+        ("mocap_frame_rate" if model_type == "smplx" else "mocap_framerate"): np.array(float(fps)),
     }
     if "expression" in params:
         arrays["expression"] = np.asarray(params["expression"], np.float64)

@@ -24,6 +24,7 @@ if TYPE_CHECKING:
     from smplcore.view.viewer import Viewer
 
 BETA_RANGE = 3.0  # sliders span [-3, 3] (standard deviations of the shape space)
+PUT_BACK_DELAY = 0.1  # seconds after a refused browser value before its slider is put back (see _checked)
 ADULT_AGE = 25.0  # the age slider's position for the open model's default (adult) body
 MAX_SLIDERS = 16  # shape / expression sliders shown at most
 _ORDER = {"body": 0, "shape": 1, "expression": 2, "pose": 3, "motion": 4, "display": 5, "save": 6}
@@ -191,7 +192,7 @@ class Controls:
         def update(event: Any) -> None:
             with self._edits:  # viser runs a browser's callbacks in a thread pool: one at a time here
                 values = getattr(self._body, name)
-                value = self._checked(slider, float(values[k]), -BETA_RANGE, BETA_RANGE)
+                value = self._checked(slider, float(values[k]), -BETA_RANGE, BETA_RANGE, event)
                 if value is None:
                     return
                 values[k] = value
@@ -204,32 +205,41 @@ class Controls:
         assert self.age is not None
         with self._edits:
             last = self.viewer.ages[self.selected]
-            value = self._checked(self.age, ADULT_AGE if last is None else float(last), 1.0, 90.0)
+            value = self._checked(self.age, ADULT_AGE if last is None else float(last), 1.0, 90.0, event)
             if value is None:
                 return
             self.viewer.switch_model(self.selected, "open", self.gender.value, age=value)
         self._refresh(event)
 
-    def _checked(self, slider: Any, last: float, lo: float, hi: float) -> float | None:
+    def _checked(self, slider: Any, last: float, lo: float, hi: float, event: Any = None) -> float | None:
         """The slider's value if it is a finite number, clamped to [lo, hi] (the slider is set to the clamped
         value); None for NaN, inf or a non-number, the slider being put back to ``last`` (any client could send
-        one: it must not reach the bodies, which every client sees)."""
+        one: it must not reach the bodies, which every client sees). A browser's refused value is put back a
+        moment later (:meth:`_put_back`): viser sets a slider from each message in its own thread and runs the
+        callbacks in a pool, so a put-back made here could overwrite a valid move that arrived meanwhile."""
         try:
             value = float(slider.value)
         except (TypeError, ValueError):
             value = float("nan")
         if not np.isfinite(value):
-            with self._silent():
-                with contextlib.suppress(TypeError, ValueError):
-                    if np.isfinite(float(slider.value)):  # a newer (valid) move came meanwhile: it stands
-                        return None
-                slider.value = last
+            if getattr(event, "client", None) is None:
+                self._put_back(slider, last)
+            else:
+                threading.Timer(PUT_BACK_DELAY, self._put_back, args=(slider, last)).start()
             return None
         if not lo <= value <= hi:
             value = min(max(value, lo), hi)
             with self._silent():
                 slider.value = value
         return value
+
+    def _put_back(self, slider: Any, last: float) -> None:
+        """Set a slider holding a refused value back to ``last``, unless a valid value came since."""
+        with self._edits, self._silent():
+            with contextlib.suppress(TypeError, ValueError):
+                if np.isfinite(float(slider.value)):
+                    return
+            slider.value = last
 
     def _refresh(self, event: Any) -> None:
         """Re-pose the selected body: at once for a change made from Python (scripts see the result), through
@@ -242,7 +252,7 @@ class Controls:
     def _on_frame(self, event: Any) -> None:
         assert self.frame is not None
         with self._edits:
-            value = self._checked(self.frame, float(self.viewer.current_frame), 0, self.viewer.num_frames - 1)
+            value = self._checked(self.frame, float(self.viewer.current_frame), 0, self.viewer.num_frames - 1, event)
         if value is not None:
             self.viewer.set_frame(int(round(value)), refresh=getattr(event, "client", None) is None)
             if getattr(event, "client", None) is not None:
@@ -250,7 +260,7 @@ class Controls:
 
     def _on_speed(self, event: Any) -> None:
         with self._edits:
-            value = self._checked(self.speed_slider, self.speed, 0.1, 4.0)
+            value = self._checked(self.speed_slider, self.speed, 0.1, 4.0, event)
             if value is not None:
                 self.speed = value
 
@@ -285,7 +295,9 @@ class Controls:
         j = body.joint_names.index(self.joint.value)
         with self._edits:
             current = Rotation.from_rotvec(body.full_pose[j].astype(np.float64)).as_euler("XYZ", degrees=True)
-            angles = [self._checked(s, float(np.round(c)), -180.0, 180.0) for s, c in zip(self.rotation, current)]
+            angles = [
+                self._checked(s, float(np.round(c)), -180.0, 180.0, event) for s, c in zip(self.rotation, current)
+            ]
             if any(a is None for a in angles):
                 return
             body.full_pose[j] = Rotation.from_euler("XYZ", angles, degrees=True).as_rotvec()

@@ -108,52 +108,25 @@ def _as_pose_layout(rotvecs: np.ndarray, model: Any) -> tuple[np.ndarray, str]:
 
 
 def read_bvh(path: str | Path) -> BvhMotion:
-    """Read a BVH file with ``bvhio``.
+    """Read a BVH file (``.bvh`` or ``.bvh.gz``) with :func:`smplcore.skeletons.read_bvh`.
 
     Raises
     ------
     ModelFileError
-        naming the file when it cannot be parsed.
-    MissingDependencyError
-        when bvhio is not installed.
+        naming the file (and the line) when it cannot be parsed.
     """
     from smplcore.io import open_input
-    from smplcore.view._deps import require
+    from smplcore.skeletons import read_bvh as read_clip
 
-    bvhio = require("bvhio", "reading .bvh motions")
     path = Path(path)
-    open_input(path, "a BVH motion (.bvh)")[0].close()  # a FIFO or device is refused before bvhio opens it
-    try:
-        container = bvhio.readAsBvh(str(path))
-    except Exception as exc:  # bvhio raises plain exceptions of many kinds on a malformed file
-        raise ModelFileError(path, f"cannot read the BVH file ({type(exc).__name__}: {exc})") from None
-    joints: list[Any] = []
-
-    def walk(joint: Any) -> None:
-        joints.append(joint)
-        for child in joint.Children:
-            walk(child)
-
-    walk(container.Root)
-    frames = int(container.FrameCount)
-    quats = np.empty((frames, len(joints), 4))
-    for j, joint in enumerate(joints):
-        for t, key in enumerate(joint.Keyframes[:frames]):
-            q = key.Rotation
-            quats[t, j] = (q.x, q.y, q.z, q.w)
-    from scipy.spatial.transform import Rotation
-
-    rotations = Rotation.from_quat(quats.reshape(-1, 4)).as_matrix().reshape(frames, len(joints), 3, 3)
-    root = np.array([tuple(k.Position) for k in container.Root.Keyframes[:frames]], dtype=np.float64).reshape(-1, 3)
-    frame_time = float(container.FrameTime)
-    if not frame_time > 0:
-        raise ModelFileError(path, f"expected a positive Frame Time, found {frame_time}")
+    open_input(path, "a BVH motion (.bvh)")[0].close()  # a FIFO or device is refused before it is opened
+    clip = read_clip(path)
     return BvhMotion(
-        names=tuple(str(j.Name) for j in joints),
-        rotations=rotations,
-        root_positions=root,
-        offsets=np.array([tuple(j.Offset) for j in joints], dtype=np.float64),
-        fps=1.0 / frame_time,
+        names=clip.joint_names,
+        rotations=clip.rotations,
+        root_positions=clip.root_positions,
+        offsets=clip.offsets,
+        fps=clip.fps,
         source=str(path),
     )
 

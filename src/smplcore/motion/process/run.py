@@ -11,7 +11,7 @@ from typing import Any
 
 from smplcore.errors import warn
 from smplcore.motion.process import preflight
-from smplcore.motion.process.executors import _run_inline, _run_pool, _run_ray, available_cpus
+from smplcore.motion.process.executors import available_cpus, run_files
 from smplcore.motion.process.manifest import (
     MANIFEST_NAME,
     SpaceReserve,
@@ -253,12 +253,10 @@ def _run_locked(
     try:
         if not todo:
             pass
-        elif ray_address is not None:
-            summary.workers = _run_ray(todo, options, ray_address, workers, on_result, tick, _stopping(summary))
-        elif workers == 0:
-            _run_inline(todo, options, on_result, tick, _stopping(summary))
         else:
-            _run_pool(todo, options, min(workers or 1, len(todo)), on_result, tick, _stopping(summary))
+            used = run_files(todo, options, workers, ray_address, on_result, tick, _stopping(summary))
+            if ray_address is not None:
+                summary.workers = used
         status = "finished"
         if summary.stopped:
             status = "stopped"
