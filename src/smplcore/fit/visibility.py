@@ -8,7 +8,8 @@ towards the image's edge, it is placed too far away). Keypoints that do not pull
 
 A body whose knees, ankles and feet are all unused has no legs in the image (an upper-body photo, a person
 cut at the hips): the legs are then the priors' (standing, as in the rest pose) and the body's tilt the
-upright prior's (:mod:`smplcore.fit.reprojection`), and :func:`warn_unseen` says so.
+upright prior's (:mod:`smplcore.fit.reprojection`), and :func:`warn_unseen` says so
+(:class:`PartialViewWarning`).
 """
 
 from __future__ import annotations
@@ -28,6 +29,10 @@ LEGS = (
 HIPS = ("left_hip", "right_hip", "mid_hip", "pelvis")
 #: Pixels inside the image's edges a keypoint must be to count as seen (detectors clamp guesses to the edge).
 EDGE_MARGIN = 1.0
+
+
+class PartialViewWarning(UserWarning):
+    """A 2D fit's bodies lack keypoints for whole parts (legs out of the image): those parts are the priors'."""
 
 
 def keypoint_weights(
@@ -63,7 +68,8 @@ def warn_unseen(names: tuple[str, ...] | list[str], weights: np.ndarray, outside
     warn(
         f"{what}: legs not visible in {len(bad)} of {len(weights)} bodies (body {int(bad[0])}: no knee, ankle "
         f"or foot keypoint used, {why}); their legs are the prior's (standing) and their tilt the upright "
-        "prior's: what is below the hips is a guess, not a fit"
+        "prior's: what is below the hips is a guess, not a fit",
+        PartialViewWarning,
     )
     return seen
 
