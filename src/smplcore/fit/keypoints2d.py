@@ -394,6 +394,7 @@ def fit_keypoints(
     visible = weights > 0
     error = weighted_error(dist, weights)
     converged = checks.flag_gross(converged, error, checks.spread_of(targets, visible), "fit_keypoints", "px")
+    plausibility = assess(body, state.pose[:, bp.start : bp.start + bp.width])
     result = FitResult(
         params=state_to_params(body, model, state),
         reprojection_error=error,
@@ -402,8 +403,8 @@ def fit_keypoints(
         camera=camera,
         point_error=np.where(visible, dist, np.nan),
         mask=visible,
-        plausibility=assess(body, state.pose[:, bp.start : bp.start + bp.width]),
+        plausibility=plausibility,
     )
     checks.finite_result(result, "fit_keypoints")
-    warn_implausible(result.plausibility, "fit_keypoints")
+    warn_implausible(plausibility, "fit_keypoints")
     return result

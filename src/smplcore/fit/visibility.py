@@ -53,7 +53,7 @@ def legs_seen(names: tuple[str, ...] | list[str], weights: np.ndarray) -> np.nda
     legs = np.array([n in LEGS for n in names])
     if not legs.any():
         return np.ones(len(weights), bool)
-    return (weights[:, legs] > 0).any(axis=1)
+    return np.asarray((weights[:, legs] > 0).any(axis=1))
 
 
 def warn_unseen(names: tuple[str, ...] | list[str], weights: np.ndarray, outside: np.ndarray, what: str) -> np.ndarray:
