@@ -40,7 +40,13 @@ _AMASS_ON_OPEN = (
     ("another shape space",),
     "walk.npz is an AMASS SMPL+H motion on the open model: docs/export.md and docs/view.md show the betas warning",
 )
+_BVH_OWN_BONES = (
+    ("target bones are not the model's",),
+    "run.bvh is walk.npz exported with its own shape: fit_joints says which of its bones the open model's best "
+    "body (|betas| <= 3) misses (BoneLengthWarning)",
+)
 WARNS: dict[str, tuple[tuple[str, ...], str]] = {
+    "smplcore fit run.bvh": _BVH_OWN_BONES,
     "smplcore export walk.npz -o walk.smpl": (
         ("no DMPL soft tissue",),
         "docs/export.md's .smpl example prints the same note (a .smpl has no soft tissue)",

@@ -90,8 +90,10 @@ def test_fit_vertices_reports_point_errors_and_plausibility(model):
 def test_converged_is_false_when_the_iterations_run_out(model):
     rng = np.random.default_rng(4)
     target = model(body_pose=rng.normal(0, 0.2, (3, 69))).joints[:, :22]
-    short = fit.fit_joints(model, target, max_iter=1, tol=1e-12, joint_limits=0.0)
+    short = fit.fit_joints(model, target, max_iter=1, tol=1e-12, joint_limits=0.0, share_betas=False)
     assert short.iterations == 1 and not short.converged.any()
+    shared = fit.fit_joints(model, target, max_iter=1, tol=1e-12, joint_limits=0.0, share_betas=True)
+    assert not shared.converged.any()
     full = fit.fit_joints(model, target, max_iter=50, tol=1e-6, joint_limits=0.0)
     assert full.converged.all() and full.iterations < 50
 
@@ -111,7 +113,17 @@ def test_the_limits_keep_a_folded_spine_plausible_and_quiet(model, recwarn):
     pose = np.zeros((2, 69))
     pose[1, _body_index(model, "spine3") * 3] = np.radians(90.0)
     target = model(body_pose=pose).joints[:, :22]
-    r = fit.fit_joints(model, target)
+    r = fit.fit_joints(model, target, share_betas=False)
     assert r.plausible.all() and r.plausibility.worst.max() < 5.0
     assert not [w for w in recwarn if issubclass(w.category, ImplausibleFitWarning)]
     assert r.joint_error[0] < 1e-3 and r.point_error[1].max() > 0.02  # the folded body's head is missed
+
+
+def test_fit_vertices_keeps_limits_only_when_asked(model):
+    pose = np.zeros((1, 69))
+    pose[0, _body_index(model, "left_elbow") * 3 + 1] = np.radians(40.0)  # bent backwards 35° past its 5°
+    target = model(body_pose=pose).vertices
+    faithful = fit.fit_vertices(model, target)
+    assert faithful.vertex_error[0] < 1e-4 and faithful.plausible.tolist() == [False]
+    limited = fit.fit_vertices(model, target, joint_limits=100.0)  # against 6,890 vertices' squared distances
+    assert limited.plausible.tolist() == [True] and limited.vertex_error[0] > 1e-3

@@ -32,6 +32,7 @@ from smplcore.fit.solver import (
     _step,
     _unflat,
 )
+from smplcore.fit.temporal import temporal_step
 
 # Bodies per chunk: keeps the (n, 3, 3, chunk) working arrays of a 10k-vertex mesh near 100 MB.
 _CHUNK_POINTS = 1_500_000
@@ -107,7 +108,9 @@ class _Problem:
         if prior is not None and prior.ndim == 2:
             prior = prior[rows]
         mean = None if obj.pose_mean is None else obj.pose_mean[rows]
-        return Objective(**{**obj.__dict__, "pose_prior": prior, "pose_mean": mean, "pose_terms": None})
+        return Objective(
+            **{**obj.__dict__, "pose_prior": prior, "pose_mean": mean, "pose_terms": None, "temporal": None}
+        )
 
     def hessian(self, state: State, rows: np.ndarray) -> np.ndarray:
         """(b, P, P) Gauss–Newton matrix of the subset (without the pose correctives' share, see
@@ -177,8 +180,9 @@ def refine(
     shared_cols = np.zeros(len(cols), bool)
     is_coeff = (cols >= q) & (cols < q + body.num_coeffs)
     shared_cols[is_coeff] = obj.shared[cols[is_coeff] - q]
-    coupled = bool(shared_cols.any()) and batch > 1
-    if not coupled:
+    temporal = obj.temporal if batch > 1 else None
+    coupled = (bool(shared_cols.any()) or temporal is not None) and batch > 1
+    if not shared_cols.any() or batch == 1:
         shared_cols[:] = False
     x = _flat(state).copy()
     costs = np.empty(batch)
@@ -253,20 +257,34 @@ def _solve(body, problem, x, rows, shared_cols, coupled, max_iter, tol, step_tol
     cols = problem.cols
     size = chunk_bodies(len(problem.obj.points.ids), len(cols)) if coupled else None
     evaluate, hessian = _threaded(problem.evaluate, workers, size), _threaded(problem.hessian, workers, size)
+    temporal = problem.obj.temporal if coupled else None
+    if temporal is not None:  # the sequence's term on top of each body's (the bodies are all of the sequence)
+        coupling = np.zeros(len(cols))
+        where = {int(c): i for i, c in enumerate(temporal.cols)}
+        for i, c in enumerate(cols):
+            if int(c) in where and not shared_cols[i]:
+                coupling[i] = temporal.weights[where[int(c)]]
+        per_body = evaluate
+
+        def evaluate(state: State, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            cost, grad, dist = per_body(state, rows)
+            extra, g = temporal.cost_gradient(_flat(state))
+            return cost + extra, grad + g[:, cols], dist
+
     scale = np.maximum(problem.obj.weights[rows].sum(1), 1e-300)
     cost, grad, dist = evaluate(_unflat(body, x), rows)
     converged = cost <= abs_tol * scale
-    if coupled:
-        converged[:] = converged.all()
+    everyone = np.arange(len(rows))
     damping = np.full(len(rows), 1e-4)
     hess: np.ndarray | None = None
     fresh = np.zeros(len(rows), bool)  # the Gauss-Newton matrix was computed at the current state
     age = np.zeros(len(rows), np.int64)
     iterations = 0
     for _ in range(max_iter):
-        active = np.flatnonzero(~converged)
-        if not len(active):
+        if converged.all():
             break
+        # coupled bodies are one system: all of them step until every one has converged
+        active = everyone if coupled else np.flatnonzero(~converged)
         iterations += 1
         sub = rows[active]
         stale = active[~fresh[active] & ((age[active] >= every) | (iterations == 1))]
@@ -279,9 +297,12 @@ def _solve(body, problem, x, rows, shared_cols, coupled, max_iter, tol, step_tol
             hess[stale] = part
         fresh[stale], age[stale] = True, 0
         assert hess is not None
-        everyone = len(active) == len(rows)
-        system = problem.terms_hessian(hess if everyone else hess[active], x[active, : body.num_pose])
-        step = _step(system, grad[active], damping[active], shared_cols)
+        all_active = len(active) == len(rows)
+        system = problem.terms_hessian(hess if all_active else hess[active], x[active, : body.num_pose])
+        if temporal is not None:
+            step = temporal_step(system, grad[active], damping[active], shared_cols, coupling)
+        else:
+            step = _step(system, grad[active], damping[active], shared_cols)
         trial = x[active].copy()
         trial[:, cols] += step
         new_cost, new_grad, new_dist = evaluate(_unflat(body, trial), sub)
@@ -304,7 +325,8 @@ def _solve(body, problem, x, rows, shared_cols, coupled, max_iter, tol, step_tol
         damping[active] = np.where(better, np.maximum(damping[active] / 3, 1e-9), damping[active] * 10)
         done = (better & ((decrease < tol) | small | tiny)) | (~better & (damping[active] > 1e8))
         done |= cost[active] <= abs_tol * scale[active]  # at the precision's floor: steps only add noise
-        if coupled:
-            done = np.full(len(active), done.all() or (better.all() and decrease.sum() < tol * len(active)))
-        converged[active] |= done
+        if coupled:  # each body's own test at the system's last accepted step (a mean decrease hides a body)
+            converged[:] = np.where(better, done, converged | done)
+        else:
+            converged[active] |= done
     return x, cost, dist, converged, iterations

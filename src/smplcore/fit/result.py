@@ -36,8 +36,8 @@ class FitResult:
         its targets (:func:`smplcore.fit.checks.flag_gross`).
     plausibility : a :class:`~smplcore.fit.plausibility.Plausibility` (which body joints lie outside their
         anatomical limits, by how many degrees per axis), or None.
-    bones : for a fit of 3D joints, a :class:`~smplcore.fit.bones.BoneReport` (target bone lengths against
-        the fitted bodies', the bones out of the shape space's reach), or None.
+    bones : for a fit of 3D joints, a :class:`smplcore.skeletons.BoneReport` (the targets' bone lengths against
+        what the model's shape space reaches; ``print(r.bones)`` for the table), or None.
     iterations : refinement iterations run.
     camera : a 2D fit's :class:`~smplcore.fit.Camera` (with the estimated focal length when it was
         estimated), or None.

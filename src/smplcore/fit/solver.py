@@ -59,6 +59,8 @@ class Objective:
     pose_mean : (B, Q) the centre μ of the pose prior (None: zero).
     pose_terms : the non-quadratic pose priors (limits, hinge, mixture), a
         :class:`~smplcore.fit.prior_terms.PoseTerms`, or None.
+    temporal : smoothness over consecutive bodies, a :class:`~smplcore.fit.temporal.Temporal`, or None
+        (:func:`smplcore.fit.gauss_newton.refine` solves the coupled system).
     """
 
     points: Points
@@ -71,6 +73,7 @@ class Objective:
     pose_prior: np.ndarray | None = None
     pose_mean: np.ndarray | None = None  # (B, Q) the pose prior's centre (None: zero)
     pose_terms: Any = None  # PoseTerms or None
+    temporal: Any = None  # Temporal or None: couples consecutive bodies
 
 
 def _columns(body: FitBody, obj: Objective) -> np.ndarray:
@@ -168,10 +171,10 @@ def normal_equations(
     prior = _prior_diagonal(obj, cols, body.num_pose, body.num_coeffs, batch)
     grad = grad + prior * x
     cost = cost + _prior_cost(obj, state)
-    hess = hess + prior[:, :, None] * np.eye(len(cols)) if hessian else None
+    system = hess + prior[:, :, None] * np.eye(len(cols)) if hessian else None
     if obj.pose_terms is not None:
-        obj.pose_terms.add_system(state.pose, np.where(cols < q_, cols, -1), grad, hess)
-    return hess, grad, cost
+        obj.pose_terms.add_system(state.pose, np.where(cols < q_, cols, -1), grad, system)
+    return system, grad, cost
 
 
 def _step(hess: np.ndarray, grad: np.ndarray, damping: np.ndarray, shared_cols: np.ndarray) -> np.ndarray:

@@ -13,6 +13,7 @@ from smplcore.fit.gauss_newton import refine
 from smplcore.fit.initialize import initialize
 from smplcore.fit.parallel import chunks, map_chunks
 from smplcore.fit.plausibility import Plausibility, assess
+from smplcore.fit.prior_terms import PoseTerms
 from smplcore.fit.result import (
     FitResult,
     as_array,
@@ -186,6 +187,7 @@ def solve(
     shape_prior: float,
     pose_prior: np.ndarray | None,
     init_iterations: int,
+    pose_terms: Any = None,
     max_iter: int,
     tol: float,
     dtype: type = np.float64,
@@ -209,6 +211,7 @@ def solve(
             fit_transl,
             shape_prior,
             prior,
+            pose_terms=pose_terms,
         )
 
     n = len(point_ids)
@@ -294,6 +297,7 @@ def fit_vertices(
     fit_transl: bool = True,
     shape_prior: float = 0.0,
     pose_prior: float = 0.0,
+    joint_limits: float = 0.0,
     init: dict[str, Any] | None = None,
     init_iterations: int = 3,
     max_iter: int = 30,
@@ -316,6 +320,9 @@ def fit_vertices(
     fit_transl : fit the translation (else it stays at ``init``'s, or zero).
     shape_prior : weight of Σ β² added to the squared error (m²); 0 fits the data exactly.
     pose_prior : weight of Σ θ² over the pose parameters but the global orientation (towards the rest pose).
+    joint_limits : weight (m² per rad²) of the anatomical joint limits (:data:`smplcore.fit.priors.JOINT_LIMITS`),
+        against the squared distances of all the points (100 holds a limit against a whole mesh of 6,890
+        vertices); 0 (the default): a mesh is reproduced as it is, and ``plausibility`` reports its joints.
     init : forward keywords to start from (default: the closed-form initialiser from zero).
     init_iterations : rounds of the closed-form initialiser (0: start from ``init`` as is).
     max_iter, tol : Levenberg–Marquardt iterations per stage and relative cost decrease to stop at
@@ -344,7 +351,9 @@ def fit_vertices(
     True
     """
     body = FitBody.from_model(model)
-    shape_prior, pose_prior = checks.options("weight", {"shape_prior": shape_prior, "pose_prior": pose_prior}).values()
+    shape_prior, pose_prior, joint_limits = checks.options(
+        "weight", {"shape_prior": shape_prior, "pose_prior": pose_prior, "joint_limits": joint_limits}
+    ).values()
     tol = checks.positive("tol", tol)
     max_iter, init_iterations = checks.options(
         "iterations", {"max_iter": max_iter, "init_iterations": init_iterations}
@@ -397,6 +406,7 @@ def fit_vertices(
         fit_transl=fit_transl,
         shape_prior=shape_prior,
         pose_prior=pose_w,
+        pose_terms=PoseTerms.of(body, joint_limits, 0.0),
         init_iterations=init_iterations,
         max_iter=max_iter,
         tol=tol,
