@@ -132,7 +132,8 @@ def test_bending_prior_flips_a_backward_elbow(open_model):
     init["body_pose"][:, col] *= -1.0  # start bent backwards
     free = fit.fit_keypoints(open_model, keypoints, camera=CAMERA, init=init, bending=0.0, joint_limits=0.0)
     kept = fit.fit_keypoints(open_model, keypoints, camera=CAMERA, init=init)
-    assert kept.params["body_pose"][0, col] < 0.0  # the prior brings it forward
+    # the hinge is zero from 0 on: the prior brings the elbow out of the backward bend (within 0.6°)
+    assert kept.params["body_pose"][0, col] < 0.01
     assert free.reprojection_error[0] < 3.0 and kept.reprojection_error[0] < 3.0
 
 

@@ -33,6 +33,7 @@ from smplcore.fit.plausibility import ImplausibleFitWarning, Plausibility, asses
 from smplcore.fit.priors import GMMPrior
 from smplcore.fit.result import FitResult
 from smplcore.fit.vertices import fit_vertices
+from smplcore.fit.visibility import PartialViewWarning
 from smplcore.fit.vposer import VPoserPrior
 
 __all__ = [
@@ -41,6 +42,7 @@ __all__ = [
     "FitResult",
     "GMMPrior",
     "ImplausibleFitWarning",
+    "PartialViewWarning",
     "Plausibility",
     "VPoserPrior",
     "assess",

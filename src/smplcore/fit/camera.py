@@ -44,6 +44,9 @@ class Camera:
     center : (c_x, c_y) principal point (pixels).
     rotation : (3, 3) world-to-camera rotation R, or an axis-angle (3,); default the identity.
     translation : (3,) world-to-camera translation t (metres); default zero.
+    image_size : (width, height) of the image in pixels, or None (unknown). When it is known,
+        :func:`smplcore.fit.fit_keypoints` ignores keypoints outside the image (a detector's guesses
+        for parts the image cuts off) and tells a body cut by the image's edge from an occluded one.
 
     Examples
     --------
@@ -58,8 +61,11 @@ class Camera:
     center: np.ndarray  # (2,)
     rotation: np.ndarray  # (3, 3)
     translation: np.ndarray  # (3,)
+    image_size: tuple[float, float] | None
 
-    def __init__(self, focal: Any, center: Any, rotation: Any = None, translation: Any = None) -> None:
+    def __init__(
+        self, focal: Any, center: Any, rotation: Any = None, translation: Any = None, image_size: Any = None
+    ) -> None:
         f = _finite(focal, "focal", np.shape(focal) if np.ndim(focal) == 0 else (2,))
         f = np.full(2, float(f)) if f.ndim == 0 else f
         if not np.all(np.isfinite(f)) or np.any(f <= 0) or np.any(f > MAX_PIXELS) or np.any(f < 1 / MAX_PIXELS):
@@ -87,6 +93,7 @@ class Camera:
         for name, value in (("focal", f), ("center", c), ("rotation", rot), ("translation", t)):
             value.setflags(write=False)
             object.__setattr__(self, name, value)
+        object.__setattr__(self, "image_size", _image_size(image_size))
 
     @classmethod
     def from_image_size(cls, width: float, height: float, focal: Any = None) -> Camera:
@@ -98,7 +105,25 @@ class Camera:
         if not (np.isfinite(width) and np.isfinite(height) and width > 0 and height > 0):
             raise ValueError(f"width, height: expected a positive image size, got {width} x {height}")
         f = float(np.hypot(width, height)) if focal is None else focal
-        return cls(focal=f, center=(width / 2.0, height / 2.0))
+        return cls(focal=f, center=(width / 2.0, height / 2.0), image_size=(width, height))
+
+    def replace(self, **changes: Any) -> Camera:
+        """This camera with some of ``focal``, ``center``, ``rotation``, ``translation``, ``image_size`` changed."""
+        values = {k: getattr(self, k) for k in ("focal", "center", "rotation", "translation", "image_size")}
+        unknown = sorted(set(changes) - set(values))
+        if unknown:
+            raise TypeError(f"replace: {unknown} are not camera fields (expected some of {sorted(values)})")
+        values.update(changes)
+        return Camera(**values)
+
+    def inside(self, pixels: Any, margin: float = 0.0) -> np.ndarray:
+        """(...,) whether (..., 2) pixel coordinates lie in the image (``margin`` pixels inside its edges);
+        all True when the image size is unknown."""
+        uv = np.asarray(pixels, np.float64)
+        if self.image_size is None:
+            return np.ones(uv.shape[:-1], bool)
+        size = np.asarray(self.image_size)
+        return np.all((uv >= margin) & (uv <= size - margin), axis=-1)
 
     def to_camera(self, points: Any) -> np.ndarray:
         """(..., 3) world points in camera coordinates ``R X + t``."""
@@ -136,7 +161,18 @@ class Camera:
 
     def __repr__(self) -> str:
         rot = "identity" if np.allclose(self.rotation, np.eye(3)) else "R"
+        size = "" if self.image_size is None else f", image_size=({self.image_size[0]:g}, {self.image_size[1]:g})"
         return (
             f"Camera(focal=({self.focal[0]:g}, {self.focal[1]:g}), center=({self.center[0]:g}, {self.center[1]:g}), "
-            f"rotation={rot}, translation={tuple(float(v) for v in self.translation)})"
+            f"rotation={rot}, translation={tuple(float(v) for v in self.translation)}{size})"
         )
+
+
+def _image_size(value: Any) -> tuple[float, float] | None:
+    """``value`` as a (width, height) in pixels, or None."""
+    if value is None:
+        return None
+    size = _finite(value, "image_size", (2,))
+    if np.any(size <= 0) or np.any(size > MAX_PIXELS):
+        raise ValueError(f"image_size: expected a positive (width, height) in pixels, got {size.tolist()}")
+    return float(size[0]), float(size[1])

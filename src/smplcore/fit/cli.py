@@ -18,7 +18,16 @@ from typing import Any
 
 import numpy as np
 
-from smplcore.fit.cli_types import _extrinsics, _floats, _positive, _positive_floats, _positive_int, _skeleton, _units
+from smplcore.fit.cli_types import (
+    _extrinsics,
+    _floats,
+    _person,
+    _positive,
+    _positive_floats,
+    _positive_int,
+    _skeleton,
+    _units,
+)
 
 EPILOG = """\
 examples:
@@ -90,7 +99,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--vposer", default=None, metavar="PATH", help="2D: VPoser v2 pose prior (V02_05/ or its .ckpt)")
     p.add_argument("--gmm", default=None, metavar="PATH", help="2D: SMPLify's gmm_08.pkl pose prior")
     p.add_argument("--fps", type=_positive, default=30.0, help="output frame rate (default 30; a BVH: its own)")
-    p.add_argument("--person", type=int, default=0, help="OpenPose: which person of each frame (default 0)")
+    p.add_argument(
+        "--person", type=_person, default=0, metavar="N|all",
+        help="OpenPose: the people are tracked over the frames; N picks track N (0, the default: the person seen in "
+        "the most frames), 'all' fits every track (a row per track and frame, each track its own shape)",
+    )  # fmt: skip
+    p.add_argument(
+        "--overlay", type=Path, default=None, metavar="PNG",
+        help="2D: draw the fit of the first image / frame over --image (or a blank canvas of the image's size) "
+        "through its camera, to this .png",
+    )  # fmt: skip
+    p.add_argument("--image", type=Path, default=None, help="2D: the photo --overlay draws on")
     p.add_argument("--smoothness", type=float, default=1e-3, help="sequences: temporal smoothness weight")
     p.add_argument(
         "--max-iter", type=_positive_int, default=None, metavar="N",
@@ -185,6 +204,8 @@ def _settings(args: argparse.Namespace):
         gmm=None if args.gmm is None else str(Path(args.gmm).resolve()),
         extrinsics=args.extrinsics,
         max_iter=args.max_iter,
+        overlay=None if args.overlay is None else str(args.overlay),
+        image=None if args.image is None else str(args.image),
         skeleton=args.skeleton,
         units=args.units,
     )
@@ -292,6 +313,9 @@ def run(args: argparse.Namespace) -> int:
 
         open_input(source, "an input file (.json, .npy, .npz, .bvh) or folder")[0].close()
     _check_camera(args, source)
+    from smplcore.fit.inputs2d import check_overlay
+
+    check_overlay(args.overlay, args.image, _is_single(source))
     if _is_single(source):
         if out.suffix.lower() != ".npz":
             raise ValueError(f"-o/--output: expected a .npz file for one input, got {out}")
@@ -394,6 +418,10 @@ def _report(
             print(f"  {e['input']}: {note}")
         if e.get("missing"):
             print(f"  frames without a detection (filled from the nearest frame): {e['missing'][:20]}")
+        if e.get("kind") == "openpose" and e.get("people", 1) > 1:
+            print(f"  {e['people']} people tracked over the frames (--person N picks one, --person all fits every one)")
+        if e.get("overlay"):
+            print(f"  overlay: {e['overlay']}")
         if e.get("images_without_person"):
             unseen = e["images_without_person"]
             more = f" … (+{len(unseen) - 20})" if len(unseen) > 20 else ""

@@ -77,6 +77,19 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _person(text: str) -> int | str:
+    """A track number (0 or more) or ``all``."""
+    if text.strip().lower() == "all":
+        return "all"
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a track number (0, 1, ...) or 'all', got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a track number (0, 1, ...) or 'all', got {text!r}")
+    return value
+
+
 def _skeleton(text: str) -> str:
     """A known skeleton map's name (``smplcore.skeletons.skeleton_names()``)."""
     from smplcore import skeletons

@@ -42,7 +42,7 @@ FOCAL_PRIOR = 1e-5
 
 def with_focal(camera: Camera, log_scale: float) -> Camera:
     """``camera`` with its focal length(s) multiplied by ``exp(log_scale)``."""
-    return Camera(camera.focal * np.exp(log_scale), camera.center, camera.rotation, camera.translation)
+    return camera.replace(focal=camera.focal * np.exp(log_scale))
 
 
 def _vertex(s: np.ndarray, cost: np.ndarray, i: int) -> float:

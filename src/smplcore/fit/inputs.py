@@ -1,8 +1,9 @@
 """What ``smplcore fit`` reads and writes: one input (2D keypoints, 3D joints, another model's motion) to
 one AMASS-style motion ``.npz`` of the fitted model.
 
-Inputs: a folder of OpenPose JSON files (one sequence; ``person`` picks the person), a COCO keypoint
-JSON (every annotated person an independent body, in image order), a ``.npy`` of 3D joints (T, n, 3) (units
+Inputs: a folder of OpenPose JSON files (one sequence; its people tracked, ``person`` picks one or
+``"all"``), a COCO keypoint JSON (every annotated person an independent body with its own shape, in image
+order; :mod:`smplcore.fit.inputs2d`), a ``.npy`` of 3D joints (T, n, 3) (units
 checked: :mod:`smplcore.fit.skeleton_inputs`), a BVH motion capture (``.bvh``, ``.bvh.gz``: skeleton and units
 detected, one person), or an AMASS-style ``.npz`` of another model (converted). The output is what
 :func:`smplcore.motion.load_motion` (``smplcore export`` / ``smplcore process``) reads, plus
@@ -42,7 +43,7 @@ class FitSettings:
     center: tuple[float, float] | None = None
     image_size: tuple[float, float] | None = None
     fps: float = 30.0
-    person: int = 0
+    person: int | str = 0  # OpenPose: a track (0: the person seen longest) or "all"
     smoothness: float = 1e-3
     source_model_path: str | None = None
     estimate_focal: bool = False  # 2D without ``focal``: estimate it from the image diagonal (else keep that)
@@ -51,6 +52,8 @@ class FitSettings:
     extrinsics: tuple[float, ...] | None = None  # 2D: world-to-camera (4 x 4 row-major, OpenCV axes); None: level
     max_iter: int | None = None  # the solvers' iteration budget (None: each fit's default)
     extra: dict[str, Any] = field(default_factory=dict)
+    overlay: str | None = None  # 2D: a .png of the first image's / frame's fit drawn over ``image``
+    image: str | None = None  # 2D: the photo the overlay is drawn on (None: a blank canvas of the image size)
     skeleton: str | None = None  # BVH / .npy: the skeleton map (None: detected from a BVH's joint names)
     units: str | None = None  # BVH / .npy: cm, m, mm, in, cmu, ft or metres per unit (None: detected)
 
@@ -137,10 +140,10 @@ def _camera(settings: FitSettings, size: tuple[float, float] | None = None):
         if center is None:
             raise ValueError("--center: the principal point is needed with --focal (or give --image-size)")
         focal = settings.focal[0] if len(settings.focal) == 1 else settings.focal
-        return Camera(focal=focal, center=center, rotation=rotation, translation=translation), False
+        return Camera(focal, center, rotation, translation, image_size=size), False
     if size is not None:
         guess = Camera.from_image_size(*size)
-        return Camera(guess.focal, guess.center, rotation, translation), settings.estimate_focal
+        return guess.replace(rotation=rotation, translation=translation), settings.estimate_focal
     raise ValueError("camera: 2D keypoints need the camera: pass --focal and --center, or --image-size W,H")
 
 
@@ -202,68 +205,12 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
     notes: list[str] = []
     fps = settings.fps
     if kind in ("openpose", "coco"):
-        from smplcore import keypoints as kp
+        from smplcore.fit.inputs2d import fit_2d
 
-        array = kp.read_openpose(path) if kind == "openpose" else kp.read_coco(path)
-        convention = settings.convention or array.convention
-        if convention is None:
-            raise ValueError(f"--convention: cannot tell the keypoints' convention in {path}; give it")
-        points = array.points.astype(np.float64)
-        if kind == "openpose":
-            if points.shape[1] <= settings.person:
-                raise ValueError(f"--person: {path} has at most {points.shape[1]} people per frame")
-            points = points[:, settings.person]
-            seen = np.flatnonzero((points[..., 2] >= 0.1).sum(-1) >= 6)  # OpenPose gives zeros for a missing person
-            if len(seen) == 0:
-                raise ValueError(f"keypoints: no frame of {path} shows person {settings.person} with 6 keypoints")
-            cam, estimate = _camera(settings)
-            r = fit.fit_keypoints(model, points[seen], convention, cam, share_betas=True, estimate_focal=estimate,
-                                  smoothness=settings.smoothness, **_priors(settings), **extra)  # fmt: skip
-            results = [(seen, r)]
-            count = len(points)
-        else:
-            points[..., 2] = (points[..., 2] > 0).astype(np.float64)  # COCO visibility → confidence
-            frame, person = np.nonzero(points[..., 2].sum(-1) >= 6)
-            if len(frame) == 0:
-                raise ValueError(f"keypoints: no person in {path} has 6 or more labelled keypoints")
-            sizes = _coco_image_sizes(path) if settings.focal is None and settings.image_size is None else {}
-            results = []
-            for f in np.unique(frame):  # one camera per image
-                rows = np.flatnonzero(frame == f)
-                cam, estimate = _camera(settings, sizes.get(array.frames[f]))
-                people = points[f, person[rows]]
-                r = fit.fit_keypoints(
-                    model, people, convention, cam, estimate_focal=estimate, **_priors(settings), **extra
-                )
-                results.append((rows, r))
-            labels = {"image_id": np.array([str(array.frames[f]) for f in frame]), "person": person}
-            count = len(frame)
-            # images with nobody to fit are not in the output: the summary names them
-            unseen = [str(array.frames[f]) for f in sorted(set(range(len(array.frames))) - set(frame.tolist()))]
-        error: np.ndarray = np.full(count, np.nan)  # frames without the person: NaN, not converged, nearest frame's fit
-        converged = np.zeros(count, bool)
-        focal = np.full((count, 2), np.nan)
-        intrinsics, extrinsics = np.tile(np.eye(3), (count, 1, 1)), np.tile(np.eye(4), (count, 1, 1))
-        parts: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
-        for rows, r in results:
-            error[rows] = r.reprojection_error
-            converged[rows] = r.converged
-            focal[rows] = r.camera.focal
-            intrinsics[rows], extrinsics[rows] = _matrices(r.camera)
-            for key, value in r.params.items():
-                parts.setdefault(key, []).append((rows, np.asarray(value)))
-        params = {k: _gather(v, count) for k, v in parts.items()}
-        fitted = np.concatenate([rows for rows, _ in results])
-        if len(fitted) < count:
-            nearest = fitted[np.abs(np.arange(count)[:, None] - fitted[None]).argmin(1)]
-            params = {k: v[nearest] for k, v in params.items()}
-        if len(fitted) < count:
-            focal, intrinsics, extrinsics = focal[nearest], intrinsics[nearest], extrinsics[nearest]
-        if settings.extrinsics is None:  # the level camera's world: feet on the ground, per camera
-            groups = [np.arange(count)] if kind == "openpose" else [rows for rows, _ in results]
-            for rows in groups:
-                _ground(model, params, extrinsics, rows)
-        betas = params["betas"].mean(0)
+        found = fit_2d(path, kind, settings, model, extra)
+        params, error, converged, labels = found.params, found.error, found.converged, found.labels
+        focal, intrinsics, extrinsics, unseen = found.focal, found.intrinsics, found.extrinsics, found.unseen
+        betas = params["betas"] if found.people else params["betas"][0]  # different people: a shape per row
     elif kind == "joints":
         from smplcore.io import numeric_array, read_arrays
 
@@ -317,10 +264,16 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
         "missing": np.flatnonzero(~np.isfinite(error)).tolist(),  # no detection: the nearest frame's fit
         "mean_error": float(np.nanmean(error)),
         "error_unit": "px" if kind in ("openpose", "coco") else "m",
-        "unit": "bodies" if kind == "coco" else "frames",  # COCO: every person of every image, one row each
+        "unit": "bodies" if labels is not None else "frames",  # COCO, all tracks: one row per person and image
         "images_without_person": unseen,
         "notes": notes,  # what was detected or converted (a BVH's skeleton and units, joints in centimetres)
     }
+    if kind in ("openpose", "coco"):
+        summary["people"] = found.tracks if kind == "openpose" else len(error)
+        if settings.overlay is not None:
+            from smplcore.fit.inputs2d import write_overlay
+
+            summary["overlay"] = str(write_overlay(model, found, settings))
     return arrays, summary
 
 

@@ -22,14 +22,23 @@ from smplcore.fit import checks
 from smplcore.fit.body import FitBody
 from smplcore.fit.camera import Camera
 from smplcore.fit.focal import FOCAL_PRIOR, estimate_focal_length
+from smplcore.fit.placement import HEAD, TORSO, place
+from smplcore.fit.plausibility import assess, warn_implausible
 from smplcore.fit.priors import BENDING, GMMPrior, joint_limits
-from smplcore.fit.reprojection import KeypointMap, Terms, keypoints_3d, levenberg_marquardt, reprojection
+from smplcore.fit.reprojection import KeypointMap, Terms, levenberg_marquardt, reprojection
 from smplcore.fit.result import FitResult, as_array, params_to_state, single_threaded_blas, state_to_params
 from smplcore.fit.solver import State
+from smplcore.fit.visibility import keypoint_weights, warn_unseen, weighted_error
 from smplcore.fit.vposer import POSE_WIDTH, VPoserPrior
 
-TORSO = ("left_shoulder", "right_shoulder", "left_hip", "right_hip", "neck", "mid_hip", "pelvis")
-HEAD = ("nose", "left_eye", "right_eye", "left_ear", "right_ear", "head", "head_top")
+__all__ = ["HEAD", "TORSO", "fit_keypoints", "keypoint_map"]
+
+#: The body's own points the upright prior reads (:mod:`smplcore.fit.reprojection`), pelvis first.
+GUIDES = ("pelvis", "spine1", "neck")
+#: Default weight of the upright prior (m² per m² of lean along the line of sight).
+UPRIGHT = 3e-2
+#: The upright prior's weight is this many times larger for bodies whose legs are not seen.
+UNSEEN_LEGS = 10.0
 
 
 def keypoint_map(body: FitBody, model: Any, convention: Any, regressor: Any = None) -> KeypointMap:
@@ -65,10 +74,14 @@ def keypoint_map(body: FitBody, model: Any, convention: Any, regressor: Any = No
     first, second = np.where(plan.mask, plan.first, 0), np.where(plan.mask, plan.second, 0)
     full[plan.mask] = 0.5 * (rows[first[plan.mask]] + rows[second[plan.mask]])
     available = plan.mask & full.any(axis=1)
-    ids = np.flatnonzero(full.any(axis=0))
-    if len(ids) == 0:
+    if not available.any():
         raise ValueError(f"convention: none of the points of {dst.label} is a point of this model")
-    return KeypointMap(body.points(ids), full[:, ids], available, dst.names)
+    names = body.output_joint_names
+    guide = np.zeros((0, width))
+    if all(n in names for n in GUIDES):
+        guide = body.output_rows[[names.index(n) for n in GUIDES]]
+    ids = np.flatnonzero(full.any(axis=0) | guide.any(axis=0))
+    return KeypointMap(body.points(ids), full[:, ids], available, dst.names, guide[:, ids] if len(guide) else None)
 
 
 def _check_keypoints(keypoints: Any, num: int, label: str) -> np.ndarray:
@@ -81,38 +94,6 @@ def _check_keypoints(keypoints: Any, num: int, label: str) -> np.ndarray:
             f"got {tuple(np.shape(keypoints))}"
         )
     return kp
-
-
-def _rotation_of(camera: Camera, facing: np.ndarray) -> np.ndarray:
-    """Axis-angle in the world of a body orientation given in camera coordinates."""
-    from scipy.spatial.transform import Rotation
-
-    cam = Rotation.from_rotvec(facing).as_matrix()
-    return Rotation.from_matrix(camera.rotation.T @ cam).as_rotvec()
-
-
-def _initial_translation(body, kmap, camera, state, targets, weights) -> tuple[np.ndarray, np.ndarray]:
-    """Translations (B, 3) putting the rest body at the depth where its torso (or all keypoints) has
-    the keypoints' size in the image, centred on them; and (B,) metres per pixel there."""
-    names = kmap.names
-    torso = np.array([n in TORSO for n in names]) & kmap.available
-    pts, _ = keypoints_3d(body, kmap, state)
-    transl = np.empty((len(targets), 3))
-    for b in range(len(targets)):
-        use = (weights[b] > 0) & torso
-        if use.sum() < 3:
-            use = weights[b] > 0
-        cam = camera.to_camera(pts[b, use])
-        size3 = np.sqrt(np.mean(np.sum((cam[:, :2] - cam[:, :2].mean(0)) ** 2, axis=1)))
-        uv = targets[b, use] / camera.focal
-        size2 = np.sqrt(np.mean(np.sum((uv - uv.mean(0)) ** 2, axis=1)))
-        depth = size3 / max(size2, 1e-9)
-        centre = (targets[b, use].mean(0) - camera.center) / camera.focal
-        want = np.array([centre[0] * depth, centre[1] * depth, depth])  # camera coords of the centroid
-        have = cam.mean(0)
-        transl[b] = state.transl[b] + camera.rotation.T @ (want - have)
-    depth = (transl @ camera.rotation.T + camera.translation)[:, 2]
-    return transl, np.maximum(depth, 0.1) / camera.focal.mean()
 
 
 def _natural_pose(body: FitBody, block: Any) -> np.ndarray:
@@ -129,6 +110,7 @@ def _natural_pose(body: FitBody, block: Any) -> np.ndarray:
 
 
 def _terms(body, kmap, camera, targets, weights, scale, sigma, free, shared, **priors) -> Terms:
+    """The terms of a round (see :class:`~smplcore.fit.reprojection.Terms`)."""
     q, k = body.num_pose, body.num_coeffs
     blocks = {b.name: b for b in body.blocks}
     bp = blocks["body_pose"]
@@ -157,39 +139,6 @@ def _terms(body, kmap, camera, targets, weights, scale, sigma, free, shared, **p
     )
 
 
-def _place(body, kmap, camera, start, given, targets, weights, go_cols, transl_cols, sigma, max_iter, tol, scale=None):
-    """Stage 1: translation and global orientation fitted to the torso and head keypoints, from the
-    camera-facing and the facing-away starts (the better kept). Returns the state, (B,) metres per
-    pixel at the bodies (``scale`` when given) and the iterations run."""
-    batch = len(targets)
-    q, k = body.num_pose, body.num_coeffs
-    facings = ((np.pi, 0.0, 0.0), (0.0, 0.0, np.pi)) if "global_orient" not in given else (None,)
-    candidates = []
-    for facing in facings:
-        state = start.copy()
-        if facing is not None:
-            state.pose[:, go_cols] = _rotation_of(camera, np.array(facing))
-        transl, placed = _initial_translation(body, kmap, camera, state, targets, weights)
-        if "transl" not in given:
-            state.transl = transl
-        candidates.append((state, placed if scale is None else scale))
-    rigid = np.array([n in TORSO + HEAD for n in kmap.names])
-    w1 = np.where(((weights > 0) & rigid).sum(1, keepdims=True) >= 3, weights * rigid, weights)
-    free = np.zeros(q + k + 3, bool)
-    free[go_cols] = free[transl_cols] = True
-    none = np.zeros_like(free)
-    both = State(*(np.concatenate([getattr(c[0], f) for c in candidates]) for f in ("pose", "coeffs", "transl")))
-    scale2 = np.concatenate([c[1] for c in candidates])
-    reps = len(candidates)
-    terms = _terms(
-        body, kmap, camera, np.tile(targets, (reps, 1, 1)), np.tile(w1, (reps, 1)), scale2, sigma, free, none
-    )
-    both, cost, _, iterations = levenberg_marquardt(body, terms, both, max_iter=max_iter, tol=tol)
-    pick = np.argmin(cost.reshape(reps, batch), axis=0) * batch + np.arange(batch)
-    state = State(both.pose[pick], both.coeffs[pick], both.transl[pick])
-    return state, scale2[pick], iterations
-
-
 @dataclass
 class _Setup:
     """What stages 1 and 2 need besides the camera."""
@@ -209,6 +158,8 @@ class _Setup:
     starts: list[np.ndarray | None] = field(default_factory=lambda: [None])  # body poses of stage 2's starts
     max_iter: int = 25
     tol: float = 1e-4
+    upright: np.ndarray | float = 0.0  # (B,) or one weight
+    up: np.ndarray | None = None
 
 
 def _stages(setup: _Setup, camera: Camera, scale: np.ndarray | None = None):
@@ -218,10 +169,14 @@ def _stages(setup: _Setup, camera: Camera, scale: np.ndarray | None = None):
     q, k = body.num_pose, body.num_coeffs
     blocks = {b.name: b for b in body.blocks}
     go, bp = blocks["global_orient"], blocks["body_pose"]
-    placed, scale, iterations = _place(
-        body, setup.kmap, camera, setup.start, setup.given, setup.targets, setup.weights,
-        np.arange(go.start, go.start + 3), q + k + np.arange(3), setup.sigma, setup.max_iter, setup.tol, scale,
-    )  # fmt: skip
+
+    def stage1_terms(cam, targets, weights, scale1, free, upright):
+        return _terms(body, setup.kmap, cam, targets, weights, scale1, setup.sigma, free, np.zeros_like(free),
+                      upright=upright, up=_up(cam, setup.up))  # fmt: skip
+
+    placed, scale, iterations = place(
+        setup, camera, stage1_terms, np.arange(go.start, go.start + 3), q + k + np.arange(3), scale
+    )
     coupled = bool(setup.shared.any() or setup.fixed.get("smooth")) and batch > 1
     best: tuple[State, np.ndarray, np.ndarray] | None = None
     for pose in setup.starts:
@@ -232,6 +187,7 @@ def _stages(setup: _Setup, camera: Camera, scale: np.ndarray | None = None):
             terms = _terms(
                 body, setup.kmap, camera, setup.targets, setup.weights, scale, setup.sigma, setup.free, setup.shared,
                 **{key: value * factor for key, value in setup.priors.items()}, **setup.fixed,
+                upright=setup.upright, up=_up(camera, setup.up),
             )  # fmt: skip
             state, cost, converged, used = levenberg_marquardt(
                 body, terms, state, max_iter=setup.max_iter, tol=setup.tol
@@ -244,6 +200,21 @@ def _stages(setup: _Setup, camera: Camera, scale: np.ndarray | None = None):
         best = (_where(better, state, best[0]), np.where(better, cost, best[1]), np.where(better, converged, best[2]))
     assert best is not None  # starts holds at least one pose
     return (*best, iterations, terms, scale)
+
+
+def _check_up(up: Any) -> np.ndarray | None:
+    """``up`` as a unit (3,) direction, or None."""
+    if up is None:
+        return None
+    value = as_array(up, "up")
+    if value.shape != (3,) or not np.linalg.norm(value) > 0:
+        raise ValueError(f"up: expected a non-zero (3,) direction (the world's up), got {np.asarray(up).tolist()}")
+    return value / np.linalg.norm(value)
+
+
+def _up(camera: Camera, up: np.ndarray | None) -> np.ndarray:
+    """The world's up direction (3,): ``up``, or the camera's −y axis (a level camera's up)."""
+    return camera.rotation.T @ np.array([0.0, -1.0, 0.0]) if up is None else up
 
 
 def _where(mask: np.ndarray, a: State, b: State) -> State:
@@ -277,6 +248,8 @@ def fit_keypoints(
     estimate_focal: bool = False,
     focal_prior: float = FOCAL_PRIOR,
     smoothness: float = 0.0,
+    upright: float = UPRIGHT,
+    up: Any = None,
     anneal: tuple[float, ...] = (3.0, 1.0),
     multi_start: bool = True,
     max_iter: int = 25,
@@ -297,7 +270,10 @@ def fit_keypoints(
         the model's joints (e.g. :func:`smplcore.keypoints.open_model_regressor`).
     betas, fit_betas, share_betas, init : as in :func:`fit_vertices`; ``share_betas`` for one person
         over a sequence.
-    min_confidence : keypoints below it are ignored; the others are weighted by their confidence.
+    min_confidence : keypoints below it are ignored, and so are keypoints outside the image when the camera
+        knows its ``image_size`` (a detector's guesses for what the image cuts off); the others are
+        weighted by their confidence. Parts without keypoints stay at the priors: legs not seen are
+        standing (with a warning, "legs not visible").
     min_points : keypoints each body needs at least (1 or more).
     sigma : Geman–McClure scale (pixels).
     shape_prior, pose_prior : weights of Σ β² and Σ θ² (body pose; m² per unit).
@@ -312,6 +288,10 @@ def fit_keypoints(
         of ``(log f/f₀)²`` (m², as the other priors) pulling it towards ``camera.focal``; the aspect
         ratio f_y/f_x is kept. The result's ``camera`` holds the estimate. About six times the time.
     smoothness : weight of Σ_t |x_t − x_{t−1}|² over pose and translation of consecutive bodies.
+    upright, up : weight (m² per m²) of the upright prior (:mod:`smplcore.fit.reprojection`), which keeps
+        the body from leaning towards or away from the camera where the keypoints do not decide it, and
+        the world's up direction (3,) it uses; default the camera's −y axis in the world (a level camera:
+        the image's up). Give ``up`` when the camera is tilted and its rotation says so.
     anneal : multipliers of the priors' weights in the rounds of stage 2.
     multi_start : run stage 2 also from a natural pose (arms lowered, elbows and knees a little bent)
         and keep, per body, the fit with the lower cost (about twice the time).
@@ -319,7 +299,10 @@ def fit_keypoints(
 
     Returns
     -------
-    FitResult with ``params``, ``reprojection_error`` (B,) mean pixels over the keypoints used,
+    FitResult with ``params``, ``reprojection_error`` (B,) confidence-weighted mean pixels over the
+    keypoints used, ``point_error`` (B, K) pixels of each keypoint (NaN where not used), ``mask`` (B, K) the
+    keypoints used, ``plausibility`` (body joints outside their anatomical limits; an
+    :class:`~smplcore.fit.plausibility.ImplausibleFitWarning` names them),
     ``converged`` (B,) and ``camera`` (the given one, or with the estimated focal length). Bodies whose mean
     reprojection error exceeds half their keypoints' spread are flagged not converged, with a warning; a fit
     that would come out non-finite raises :class:`smplcore.fit.FitError` (never a NaN result).
@@ -335,10 +318,11 @@ def fit_keypoints(
     weights_ = checks.options("weight", dict(
         min_confidence=min_confidence, shape_prior=shape_prior, pose_prior=pose_prior, joint_limits=joint_limits,
         bending=bending, gmm_weight=gmm_weight, vposer_weight=vposer_weight, focal_prior=focal_prior,
-        smoothness=smoothness,
+        smoothness=smoothness, upright=upright,
     ))  # fmt: skip
     (min_confidence, shape_prior, pose_prior, joint_limits, bending, gmm_weight, vposer_weight, focal_prior,
-     smoothness) = weights_.values()  # fmt: skip
+     smoothness, upright) = weights_.values()  # fmt: skip
+    up_dir = _check_up(up)
     sigma, tol = checks.positive("sigma", sigma), checks.positive("tol", tol)
     max_iter = checks.count("max_iter", max_iter, 0, 100_000)
     min_points = checks.count("min_points", min_points, 1)
@@ -355,14 +339,17 @@ def fit_keypoints(
     batch = len(kp)
     checks.nonempty_batch("keypoints", batch)
     targets, conf = kp[..., :2], kp[..., 2]
-    weights = np.where((conf >= min_confidence) & kmap.available, conf, 0.0)
+    weights, outside = keypoint_weights(targets, conf, kmap.available, camera, min_confidence)
     counts = (weights > 0).sum(1)
     if np.any(counts < min_points):
         bad = np.flatnonzero(counts < min_points)
+        inside = " inside the image" if camera.image_size is not None else ""
         raise ValueError(
             f"keypoints: bodies {bad.tolist()[:10]} have {counts[bad].tolist()[:10]} keypoints with confidence "
-            f">= {min_confidence} that the model has (need min_points={min_points}); drop them or lower min_points"
+            f">= {min_confidence}{inside} that the model has (need min_points={min_points}); drop them or lower "
+            "min_points"
         )
+    legs = warn_unseen(kmap.names, weights, outside, "fit_keypoints")
     if isinstance(gmm, (str, os.PathLike)):
         gmm = GMMPrior.load(gmm)
     q, k = body.num_pose, body.num_coeffs
@@ -395,7 +382,8 @@ def fit_keypoints(
         body, kmap, start, init or {}, targets, weights, free, shared, sigma,
         priors=dict(shape_prior=shape_prior, pose_prior=pose_prior, gmm_prior=gmm_weight, vposer_prior=vposer_weight),
         fixed=dict(limit_prior=joint_limits, bend_prior=bending, gmm=gmm, vposer=vposer, smooth=smoothness),
-        anneal=anneal, starts=starts, max_iter=max_iter, tol=tol,
+        anneal=anneal, starts=starts, max_iter=max_iter, tol=tol, up=up_dir,
+        upright=np.where(legs, 1.0, UNSEEN_LEGS) * upright,
     )  # fmt: skip
     if estimate_focal:
         state, converged, iterations, terms = estimate_focal_length(setup, _stages, camera, focal_prior)
@@ -404,13 +392,19 @@ def fit_keypoints(
         state, _, converged, iterations, terms, _ = _stages(setup, camera)
     dist = reprojection(body, terms, state)
     visible = weights > 0
-    error = (dist * visible).sum(1) / visible.sum(1)
+    error = weighted_error(dist, weights)
     converged = checks.flag_gross(converged, error, checks.spread_of(targets, visible), "fit_keypoints", "px")
+    plausibility = assess(body, state.pose[:, bp.start : bp.start + bp.width])
     result = FitResult(
         params=state_to_params(body, model, state),
         reprojection_error=error,
         converged=converged,
         iterations=iterations,
         camera=camera,
+        point_error=np.where(visible, dist, np.nan),
+        mask=visible,
+        plausibility=plausibility,
     )
-    return checks.finite_result(result, "fit_keypoints")
+    checks.finite_result(result, "fit_keypoints")
+    warn_implausible(plausibility, "fit_keypoints")
+    return result

@@ -9,6 +9,14 @@ minimised by Gauss–Newton with iteratively reweighted residuals (weights ``c �
 the robust cost) and Levenberg damping, on the exact Jacobian of the model's points. The priors of
 :mod:`smplcore.fit.priors` (and VPoser's encoder mean, :mod:`smplcore.fit.vposer`) enter as residuals.
 
+**Upright prior.** 2D keypoints barely tell whether a body leans towards or away from the camera, and
+nothing at all when the hips and legs are out of the image (a body lying along the line of sight then
+fits an upper-body photo as well as a standing one). A prior keeps the body from leaning along the line
+of sight: with ``d`` the vector from the pelvis to the neck (and, scaled to the same length, from the
+pelvis to ``spine1``, which follows the pelvis alone), the residual is ``d · h`` (metres), ``h`` the
+camera's viewing direction made horizontal (perpendicular to the world's up). A lean across the image,
+which the keypoints show, is left to them.
+
 With ``Terms.estimate_focal`` the flat parameters carry one more column, ``s = log(f / f₀)`` (``f₀`` the
 camera's focal length, both f_x and f_y scaled alike), shared by the batch; a weak prior ``w s²``
 (counted once for the batch) pulls it towards the camera's focal length. Focal length and depth are
@@ -36,12 +44,17 @@ from smplcore.fit.vposer import POSE_WIDTH, VPoserPrior
 
 @dataclass(frozen=True)
 class KeypointMap:
-    """K keypoints as combinations (K, n) of the fitting points ``points``; ``available`` (K,)."""
+    """K keypoints as combinations (K, n) of the fitting points ``points``; ``available`` (K,).
+
+    ``guide`` (G, n): the body's own points the upright prior reads (pelvis, spine1, neck; G = 0 when the
+    model lacks them), posed with the keypoints at no extra cost.
+    """
 
     points: Points
     combo: np.ndarray
     available: np.ndarray
     names: tuple[str, ...]
+    guide: np.ndarray | None = None
 
 
 @dataclass
@@ -83,6 +96,8 @@ class Terms:
     estimate_focal: bool = False
     focal_prior: float = 0.0
     focal_centre: float = 0.0  # the prior's centre, log(f₀ / camera.focal)
+    upright: float | np.ndarray = 0.0  # weight of the upright prior (m² per m²), or (B,) one per body
+    up: np.ndarray | None = None  # (3,) the world's up direction
 
 
 def flat(state: State) -> np.ndarray:
@@ -96,17 +111,46 @@ def unflat(body: FitBody, x: np.ndarray) -> State:
 
 def keypoints_3d(body: FitBody, kmap: KeypointMap, state: State, jacobian: bool = False):
     """(B, K, 3) keypoints of the bodies and, with ``jacobian``, (B, K, 3, P) over the flat parameters."""
+    pts, jac, _, _ = posed(body, kmap, state, jacobian)
+    return pts, jac
+
+
+def posed(body: FitBody, kmap: KeypointMap, state: State, jacobian: bool = False):
+    """The keypoints (B, K, 3) and the guide points (B, G, 3) of the bodies and, with ``jacobian``, their
+    Jacobians (B, K, 3, P) and (B, G, 3, P) over the flat parameters (else None)."""
     lin = pose_points(body, kmap.points, body.full_pose(state.pose), state.coeffs, state.transl, jacobian)
-    pts = kmap.combo @ lin.points
+    guide = np.zeros((0, kmap.combo.shape[1])) if kmap.guide is None else kmap.guide
+    pts, gpts = kmap.combo @ lin.points, guide @ lin.points
     if not jacobian:
-        return pts, None
+        return pts, None, gpts, None
     nj3 = 3 * body.num_joints
     jac = lin.jacobian
     assert jac is not None  # pose_points was asked for it
     if body.pose_map is not None:
         jac = np.concatenate([jac[..., :nj3] @ body.pose_map.T, jac[..., nj3:]], axis=-1)
     batch, n, _, width = jac.shape
-    return pts, (kmap.combo @ jac.reshape(batch, n, 3 * width)).reshape(batch, -1, 3, width)
+    flat_jac = jac.reshape(batch, n, 3 * width)
+    return (
+        pts,
+        (kmap.combo @ flat_jac).reshape(batch, -1, 3, width),
+        gpts,
+        (guide @ flat_jac).reshape(batch, -1, 3, width),
+    )
+
+
+def upright_residuals(guides: np.ndarray, guide_jac: np.ndarray | None, up: np.ndarray, toward: np.ndarray):
+    """The upright prior's residuals (B, G − 1): how far (metres) the vectors ``d`` from the first guide
+    point (the pelvis) to the others lean along ``toward`` (the camera's horizontal line of sight, (3,),
+    perpendicular to the world's ``up``), each scaled to the length of the last (pelvis to neck); and
+    their Jacobians (B, G − 1, P) (None without ``guide_jac``)."""
+    d = guides[:, 1:] - guides[:, :1]  # (B, G-1, 3)
+    length = np.maximum(np.linalg.norm(d, axis=-1), 1e-9)
+    scale = length[:, -1:] / length  # every vector as long as pelvis → neck (scale held constant)
+    res = scale * (d @ toward)
+    if guide_jac is None:
+        return res, None
+    dd = guide_jac[:, 1:] - guide_jac[:, :1]  # (B, G-1, 3, P)
+    return res, scale[..., None] * np.einsum("c,bgcp->bgp", toward, dd)
 
 
 def reprojection(body: FitBody, terms: Terms, state: State) -> np.ndarray:
@@ -115,11 +159,20 @@ def reprojection(body: FitBody, terms: Terms, state: State) -> np.ndarray:
     return np.linalg.norm(terms.camera.project(pts) - terms.targets, axis=-1)
 
 
-def _prior_parts(terms: Terms, x: np.ndarray):
+def _prior_parts(terms: Terms, x: np.ndarray, guides: np.ndarray | None = None, guide_jac: np.ndarray | None = None):
     """Residual blocks of the priors: a list of (weight, residual (B, m), Jacobian (B, m, P) or
-    diagonal (B, m) on columns ``cols``), plus the GMM's constant cost (B,)."""
+    diagonal (B, m) on columns ``cols``), plus the GMM's constant cost (B,). ``guides`` (B, G, 3) and
+    ``guide_jac`` (B, G, 3, P) are the posed guide points, for the upright prior."""
     parts = []
     const = np.zeros(len(x))
+    upright = np.broadcast_to(np.asarray(terms.upright, np.float64), (len(x),))
+    if upright.any() and terms.up is not None and guides is not None and guides.shape[1] > 1:
+        res, jac = upright_residuals(guides, guide_jac, terms.up, _line_of_sight(terms.camera, terms.up))
+        root = np.sqrt(upright)[:, None]  # per-body weights, into the residuals
+        width = guide_jac.shape[-1] if guide_jac is not None else x.shape[1]
+        cols = np.arange(min(width, x.shape[1]))
+        jac = np.zeros((len(x), res.shape[1], len(cols))) if jac is None else jac[..., cols] * root[..., None]
+        parts.append((1.0, res * root, jac, cols))
     if terms.shape_prior and len(terms.beta_cols):
         parts.append(
             (terms.shape_prior, x[:, terms.beta_cols], np.ones((len(x), len(terms.beta_cols))), terms.beta_cols)
@@ -149,6 +202,17 @@ def _prior_parts(terms: Terms, x: np.ndarray):
     return parts, const
 
 
+def _line_of_sight(camera: Camera, up: np.ndarray) -> np.ndarray:
+    """(3,) the camera's viewing direction made horizontal (perpendicular to ``up``), unit length; the
+    camera's y axis made horizontal when the camera looks straight up or down."""
+    for axis in (2, 1):
+        view = camera.rotation[axis]  # the camera's axis in the world
+        flat = view - (view @ up) * up
+        if np.linalg.norm(flat) > 1e-6:
+            return flat / np.linalg.norm(flat)
+    return np.array([1.0, 0.0, 0.0])
+
+
 def smooth_cost(terms: Terms, x: np.ndarray) -> np.ndarray:
     """(B,) temporal smoothness cost, each difference charged to the later body."""
     cost = np.zeros(len(x))
@@ -174,7 +238,7 @@ def evaluate(body: FitBody, terms: Terms, x: np.ndarray, system: bool = True):
     state = unflat(body, x)
     if terms.estimate_focal:
         state.transl = focal_translation(body, terms.camera, x)
-    pts, jac = keypoints_3d(body, terms.kmap, state, system)
+    pts, jac, guides, guide_jac = posed(body, terms.kmap, state, system)
     s2 = (terms.scale**2)[:, None]
     uv, d_uv = terms.camera.project_jacobian(pts)
     if terms.estimate_focal:  # u = c + e^s (u₀ − c)
@@ -191,7 +255,7 @@ def evaluate(body: FitBody, terms: Terms, x: np.ndarray, system: bool = True):
     e2 = np.sum(e * e, axis=-1)
     sig2 = terms.sigma**2
     cost = np.sum(terms.weights * sig2 * e2 / (sig2 + e2) * s2, axis=1)
-    parts, const = _prior_parts(terms, x)
+    parts, const = _prior_parts(terms, x, guides, guide_jac)
     for weight, res, _, _ in parts:
         cost = cost + weight * np.sum(res * res, axis=1)
     cost = cost + const + smooth_cost(terms, x)

@@ -276,7 +276,16 @@ def motion_from_arrays(
             key="mocap_frame_rate" if model_type == "smplx" else "mocap_framerate",
         )
     gender = _text(raw.get("gender", "neutral")).strip().lower() or "neutral"
-    betas = np.asarray(raw.get("betas", np.zeros(10)), dtype=np.float64).reshape(-1)
+    betas = np.asarray(raw.get("betas", np.zeros(10)), dtype=np.float64)
+    if betas.ndim == 2 and len(np.unique(betas, axis=0)) > 1:  # smplcore fit's multi-person output
+        raise ModelFileError(
+            path,
+            f"holds {len(betas)} rows of shape coefficients (different people, e.g. a COCO file or an OpenPose "
+            "sequence fitted with --person all); a motion is one person: take one person's rows (same image_id and "
+            "person, or same track) and save them with that person's betas",
+            key="betas",
+        )
+    betas = betas[0] if betas.ndim == 2 else betas.reshape(-1)
     if not np.isfinite(betas).all():
         raise ModelFileError(path, "contains NaN or infinite values", key="betas")
     optional = {k: np.asarray(raw[k], dtype=np.float64) for k in ("expression", "dmpls") if k in raw}
