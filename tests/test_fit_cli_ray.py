@@ -7,6 +7,7 @@ import pytest
 
 import smplcore
 from smplcore.cli import main
+from smplcore.fit.priors import joint_limits
 
 try:
     import ray
@@ -20,8 +21,9 @@ def test_ray_fits_a_folder_and_skips_bad_inputs(tmp_path, capsys):
     model = smplcore.BodyModel(model_type="open", dtype=np.float64)
     inputs = tmp_path / "in"
     inputs.mkdir()
+    lo, hi = joint_limits(list(model.skeleton_joint_names[1:24]))  # poses a body can take (limits are on)
     for i in range(2):
-        pose = np.random.default_rng(i).normal(0, 0.2, (3, 69))
+        pose = np.clip(np.random.default_rng(i).normal(0, 0.2, (3, 23, 3)), lo, hi).reshape(3, 69)
         np.save(inputs / f"j{i}.npy", np.asarray(model(body_pose=pose).joints, np.float64)[:, :22])
     np.save(inputs / "bad.npy", np.full((2, 22, 3), np.nan))
     out = tmp_path / "out"
