@@ -162,6 +162,9 @@ def keypoints_case(count: int, rows: list, rng: np.random.Generator) -> dict:
     return numbers
 
 
+GMM: dict[str, str] = {}  # fit_keypoints' gmm= (--gmm)
+
+
 def main() -> None:
     import argparse
 
@@ -170,8 +173,11 @@ def main() -> None:
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--images", type=int, default=32)
+    parser.add_argument("--gmm", default=None, help='a pose mixture for fit_keypoints ("open", a gmm_08.pkl path)')
     parser.add_argument("--out", default=str(Path(__file__).resolve().parent / "FIT2D_RESULTS.md"))
     args = parser.parse_args()
+    if args.gmm:
+        GMM["gmm"] = args.gmm
     rows: list = []
     numbers = keypoints_case(args.images, rows, np.random.default_rng(0))
     lines = [

@@ -36,8 +36,9 @@ from smplcore.skeletons import read_bvh, to_model_targets  # noqa: E402
 
 def settings() -> dict[str, dict]:
     return {
-        "no priors": {"joint_limits": 0.0},
-        "limits (default)": {},
+        "no priors": {"joint_limits": 0.0, "gmm": None},
+        "limits only": {"gmm": None},
+        "default (limits; open GMM where bones are out of reach)": {},
         "limits + open GMM": {"gmm": fit.GMMPrior.open()},
     }
 

@@ -22,7 +22,6 @@ from smplcore.fit.initialize import shape_and_translation
 from smplcore.fit.joint_init import initial_state, joint_shape_and_translation
 from smplcore.fit.plausibility import TOLERANCE, assess, warn_implausible
 from smplcore.fit.prior_terms import PoseTerms, gmm_prior
-from smplcore.fit.priors import GMMPrior
 from smplcore.fit.result import FitResult, params_to_state, single_threaded_blas, state_to_params
 from smplcore.fit.solver import Objective, State, _columns, normal_equations, residual_cost
 from smplcore.fit.temporal import Temporal, one_person, unwrap_rotations
@@ -186,7 +185,7 @@ def fit_joints(
     prior = body.pose_prior_weights(pose_prior)
     bones = bone_report(model, jt, weights > 0, _names(body, joint_names, count))
     if isinstance(gmm, str) and gmm == "auto":
-        gmm = "open" if bones is not None and bones.out_of_reach and hasattr(GMMPrior, "open") else None
+        gmm = "open" if bones is not None and bones.out_of_reach else None
     terms = PoseTerms.of(body, weights_["joint_limits"], weights_["bending"], gmm_prior(gmm), weights_["gmm_weight"])
     obj = Objective(body.points(ids), jt, weights, free, shared, fit_transl, shape_prior, prior, pose_terms=terms)
     state = start if init is not None else _start(body, ids, obj, start, clip=max_iter > 0)

@@ -24,6 +24,7 @@ from smplcore.fit.camera import Camera
 from smplcore.fit.focal import FOCAL_PRIOR, estimate_focal_length
 from smplcore.fit.placement import HEAD, TORSO, place
 from smplcore.fit.plausibility import assess, warn_implausible
+from smplcore.fit.prior_terms import gmm_prior
 from smplcore.fit.priors import BENDING, GMMPrior, joint_limits
 from smplcore.fit.reprojection import KeypointMap, Terms, levenberg_marquardt, reprojection
 from smplcore.fit.result import FitResult, as_array, params_to_state, single_threaded_blas, state_to_params
@@ -279,7 +280,8 @@ def fit_keypoints(
     shape_prior, pose_prior : weights of Σ β² and Σ θ² (body pose; m² per unit).
     joint_limits, bending : weights (m² per rad²) of the anatomical joint limits and of the elbow/knee
         bending prior (:mod:`smplcore.fit.priors`).
-    gmm, gmm_weight : SMPLify's ``gmm_08.pkl`` (path or :class:`GMMPrior`) and its weight.
+    gmm, gmm_weight : a pose mixture (a :class:`GMMPrior`, a path to SMPLify's ``gmm_08.pkl``, or ``"open"`` for
+        smplcore's open prior, :meth:`GMMPrior.open`) and its weight.
     vposer, vposer_weight : VPoser v2 (the ``V02_05`` folder, its ``.ckpt``, or a :class:`VPoserPrior`) and
         the weight of ``|μ(θ)|²``, its encoder's mean of the first 21 body joints' rotations.
     estimate_focal : fit one focal length for the whole batch (every body is seen by ``camera``):
@@ -328,8 +330,6 @@ def fit_keypoints(
     min_points = checks.count("min_points", min_points, 1)
     anneal = checks.factors("anneal", anneal)
     init = checks.init_params(init, body)
-    if gmm is not None and not isinstance(gmm, (str, os.PathLike, GMMPrior)):
-        raise TypeError(f"gmm: expected a path or a smplcore.fit.GMMPrior, got {type(gmm).__name__}")
     if vposer is not None and not isinstance(vposer, (str, os.PathLike, VPoserPrior)):
         raise TypeError(f"vposer: expected a path or a smplcore.fit.VPoserPrior, got {type(vposer).__name__}")
     if not {"global_orient", "body_pose"} <= {b.name for b in body.blocks}:
@@ -350,8 +350,7 @@ def fit_keypoints(
             "min_points"
         )
     legs = warn_unseen(kmap.names, weights, outside, "fit_keypoints")
-    if isinstance(gmm, (str, os.PathLike)):
-        gmm = GMMPrior.load(gmm)
+    gmm = gmm_prior(gmm)
     q, k = body.num_pose, body.num_coeffs
     blocks = {b.name: b for b in body.blocks}
     if gmm is not None:

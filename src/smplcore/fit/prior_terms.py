@@ -20,15 +20,12 @@ from smplcore.fit.priors import BENDING, GMMPrior, bending_residuals, joint_limi
 
 
 def gmm_prior(value: Any) -> GMMPrior | None:
-    """``gmm`` as a :class:`GMMPrior`: None, a prior, a path to SMPLify's ``gmm_08.pkl``, or ``"open"`` (the
-    open prior trained on motion capture, when this version ships it)."""
+    """``gmm`` as a :class:`GMMPrior`: None, a prior, a path to SMPLify's ``gmm_08.pkl``, or ``"open"``
+    (smplcore's open prior trained on motion capture, :meth:`GMMPrior.open`)."""
     if value is None or isinstance(value, GMMPrior):
         return value
     if isinstance(value, str) and value == "open":
-        opener = getattr(GMMPrior, "open", None)
-        if opener is None:
-            raise ValueError('gmm: "open" needs the open pose prior, which this version of smplcore does not ship')
-        return opener()
+        return GMMPrior.open()
     if isinstance(value, (str, os.PathLike)):
         return GMMPrior.load(value)
     raise TypeError(f"gmm: expected a GMMPrior, a path to gmm_08.pkl, or None; got {type(value).__name__}")
