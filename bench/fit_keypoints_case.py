@@ -131,7 +131,7 @@ def keypoints_case(count: int, rows: list, rng: np.random.Generator) -> dict:
     model = smplcore.BodyModel(model_type="open", dtype=np.float32)
     _, keypoints, j3 = synthetic(model, count, rng)
     start, cpu = time.perf_counter(), time.process_time()
-    r = fit.fit_keypoints(model, keypoints, camera=CAMERA)
+    r = fit.fit_keypoints(model, keypoints, camera=CAMERA, **GMM)
     ours_dt = (time.perf_counter() - start) / count
     ours_cpu = (time.process_time() - cpu) / count
     got = kp.convert(np.asarray(model(**r.params).joints, np.float64), model, "coco17")[0]

@@ -195,3 +195,29 @@ def test_motion_conversion_reads_the_source_in_the_gender_its_file_names(tmp_pat
     gap = np.linalg.norm(source - same_params, axis=-1).mean()  # the neutral mesh of the same parameters
     fitted = np.asarray(neutral(**again.model_params("open", names)).vertices)
     assert np.linalg.norm(fitted - source, axis=-1).mean() < 0.3 * gap  # the female mesh, not the neutral one
+
+
+def test_joints_npy_with_joint_weights_and_a_lost_marker(tmp_path, open_model, sequence, capsys):
+    """A NaN marker is missing in that frame only (the sequence is fitted); --joint-weights leaves joints out."""
+    joints = np.asarray(open_model(**sequence).joints, np.float64)[:, :22]
+    joints[1, 20] = np.nan  # the left wrist lost in frame 1
+    wrong = joints.copy()
+    wrong[:, 21] += 0.3  # the right wrist 30 cm off everywhere: weighted 0 below, so it must not pull
+    path = tmp_path / "j22.npy"
+    np.save(path, wrong)
+    names = ",".join(open_model.joint_names[:22])
+    out = tmp_path / "w.npz"
+    weights = ",".join(["1"] * 21 + ["0"])
+    assert main(["fit", str(path), "-o", str(out), "--joint-names", names, "--joint-weights", weights]) == 0
+    with np.load(out) as data:
+        assert data["fit_error"].max() < 0.005  # over the joints used: the zero-weight wrist is not counted
+    fitted = np.asarray(open_model(**{k: v for k, v in load_motion(out).model_params("open").items()}).joints)
+    # unobserved, the wrist goes where the elbow's prior puts it (a few cm off), not to the +30 cm target
+    assert np.linalg.norm(fitted[:, 21] - joints[:, 21], axis=-1).max() < 0.15
+    with pytest.raises(SystemExit):
+        main(["fit", str(path), "-o", str(out), "--joint-names", names, "--joint-weights", "1,-1"])
+    assert "expected non-negative numbers" in capsys.readouterr().err
+    assert (
+        main(["fit", str(path), "-o", str(tmp_path / "x.npz"), "--joint-names", names, "--joint-weights", "1,1"]) == 1
+    )
+    assert "--joint-weights: 2 weights for the 22 joints" in capsys.readouterr().err

@@ -27,6 +27,7 @@ from smplcore.fit.cli_types import (
     _positive_int,
     _skeleton,
     _units,
+    _weights,
 )
 
 EPILOG = """\
@@ -69,6 +70,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--source-model-path", default=None, help="conversion: the source motion's model (default: open)")
     p.add_argument("--convention", default=None, help="keypoint/joint convention (default: the reader's)")
     p.add_argument("--joint-names", default=None, help=".npy joints: the model joint names, comma-separated")
+    p.add_argument("--joint-weights", type=_weights, default=None,
+                   help=".npy joints: a weight per joint, comma-separated (0 leaves a joint out)")  # fmt: skip
     p.add_argument(
         "--skeleton", type=_skeleton, default=None, metavar="NAME",
         help="BVH: the skeleton map (default: detected from the joint names); .npy: read the points as this keypoint "
@@ -192,6 +195,7 @@ def _settings(args: argparse.Namespace):
         gender=args.gender,
         convention=args.convention,
         joint_names=names,
+        joint_weights=args.joint_weights,
         focal=args.focal,
         center=args.center,
         image_size=args.image_size,

@@ -24,6 +24,13 @@ def _positive_floats(text: str) -> tuple[float, ...]:
     return values
 
 
+def _weights(text: str) -> tuple[float, ...]:
+    values = _floats(text)
+    if not values or not all(np.isfinite(v) and v >= 0 for v in values):
+        raise argparse.ArgumentTypeError(f"expected non-negative numbers, one per joint, got {text!r}")
+    return values
+
+
 def _extrinsics(text: str) -> tuple[float, ...]:
     """A world-to-camera matrix: 12 or 16 numbers (3 x 4 or 4 x 4, row by row), or a .npy / text file of it."""
     path = Path(text)

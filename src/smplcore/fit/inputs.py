@@ -39,6 +39,7 @@ class FitSettings:
     gender: str = "neutral"
     convention: str | None = None
     joint_names: tuple[str, ...] | None = None
+    joint_weights: tuple[float, ...] | None = None
     focal: tuple[float, ...] | None = None
     center: tuple[float, float] | None = None
     image_size: tuple[float, float] | None = None
@@ -221,6 +222,13 @@ def fit_input(path: str | Path, settings: FitSettings, model: Any = None) -> tup
         weights = None
         if names is None and settings.convention is not None and settings.skeleton is None:
             names, weights = _convention_joints(model, settings.convention, joints.shape[1])
+        if settings.joint_weights is not None:
+            if len(settings.joint_weights) != joints.shape[1]:
+                raise ValueError(
+                    f"--joint-weights: {len(settings.joint_weights)} weights for the {joints.shape[1]} joints of {path}"
+                )
+            given = np.asarray(settings.joint_weights, np.float64)
+            weights = given if weights is None else np.asarray(weights, np.float64) * given
         from smplcore.fit.skeleton_inputs import joints_in_metres
 
         joints, names, weights, notes = joints_in_metres(joints, names, weights, settings, model)
