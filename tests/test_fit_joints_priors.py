@@ -64,7 +64,7 @@ def _spine(model, result):
 
 def test_a_short_torso_folds_the_spine_without_limits(model):
     with pytest.warns(ImplausibleFitWarning, match="spine"):
-        r = fit.fit_joints(model, _short_torso(model), joint_names=NAMES, joint_limits=0.0)
+        r = fit.fit_joints(model, _short_torso(model), joint_names=NAMES, joint_limits=0.0, gmm=None)
     bend = sum(np.abs(a[:, 0]) for a in _spine(model, r).values())
     assert bend.min() > 60  # the spine and neck fold to bring the neck 18 cm down
     assert not r.plausible.any()

@@ -266,7 +266,9 @@ def test_fit_with_vposer_lowers_the_prior_term(open_model, ckpt, prior):
     def term(r):
         return np.sum(prior.encode(np.asarray(r.params["body_pose"])[:, :63]) ** 2, axis=1)
 
-    assert np.all(term(with_prior) < 0.8 * term(plain)), (term(with_prior), term(plain))
+    # every body lower, the batch clearly so (the upright prior of the plain fit already lowers it somewhat)
+    assert np.all(term(with_prior) < term(plain)), (term(with_prior), term(plain))
+    assert term(with_prior).mean() < 0.9 * term(plain).mean(), (term(with_prior), term(plain))
     assert np.all(with_prior.reprojection_error < 4.0)  # the data still fit (pixels)
     again = fit.fit_keypoints(open_model, keypoints, camera=CAMERA, vposer=prior, vposer_weight=weight)
     np.testing.assert_allclose(again.params["body_pose"], with_prior.params["body_pose"], atol=1e-9)

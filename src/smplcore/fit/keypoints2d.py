@@ -281,7 +281,9 @@ def fit_keypoints(
     joint_limits, bending : weights (m² per rad²) of the anatomical joint limits and of the elbow/knee
         bending prior (:mod:`smplcore.fit.priors`).
     gmm, gmm_weight : a pose mixture (a :class:`GMMPrior`, a path to SMPLify's ``gmm_08.pkl``, or ``"open"`` for
-        smplcore's open prior, :meth:`GMMPrior.open`) and its weight.
+        smplcore's open prior, :meth:`GMMPrior.open`; default None) and its weight. ``gmm="open"`` is recommended
+        for real images: it lowers PA-MPJPE on held-out real mocap seen through cameras (73 -> 63 mm, COCO-17,
+        whole body in view) and on the synthetic bench (36.6 -> 34.0 mm).
     vposer, vposer_weight : VPoser v2 (the ``V02_05`` folder, its ``.ckpt``, or a :class:`VPoserPrior`) and
         the weight of ``|μ(θ)|²``, its encoder's mean of the first 21 body joints' rotations.
     estimate_focal : fit one focal length for the whole batch (every body is seen by ``camera``):

@@ -28,6 +28,7 @@ FAIR AnimatedDrawings) by ``tools/train_pose_prior.py``: it needs no registratio
 
 from __future__ import annotations
 
+import functools
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -183,11 +184,7 @@ class GMMPrior:
         body-pose values of SMPL's 23 body joints (``.marginal(63)`` for the 21 of SMPL+H / SMPL-X), learned from
         CMU and FAIR motion capture retargeted to the open model; the file's ``provenance`` states the data, its
         licence, the held-out subjects and the command that rebuilds it."""
-        path = Path(__file__).resolve().parents[1] / "data" / "pose_prior_open.npz"
-        if not path.exists():
-            raise ModelFileError(path, "the open pose prior is missing from the installation (reinstall smplcore)")
-        with np.load(path, allow_pickle=False) as data:
-            return cls.from_arrays(data["means"], data["covars"], data["weights"], str(path))
+        return _open_prior()
 
     @property
     def dim(self) -> int:
@@ -215,3 +212,13 @@ class GMMPrior:
         best = np.argmin(cost, axis=1)
         rows = np.arange(len(theta))
         return best, res[rows, best], np.swapaxes(self.chol[best], 1, 2)
+
+
+@functools.cache
+def _open_prior() -> GMMPrior:
+    """The shipped open prior, read once per process (every fit that uses it shares it; do not modify it)."""
+    path = Path(__file__).resolve().parents[1] / "data" / "pose_prior_open.npz"
+    if not path.exists():
+        raise ModelFileError(path, "the open pose prior is missing from the installation (reinstall smplcore)")
+    with np.load(path, allow_pickle=False) as data:
+        return GMMPrior.from_arrays(data["means"], data["covars"], data["weights"], str(path))
