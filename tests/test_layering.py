@@ -32,6 +32,7 @@ LAYERS: list[set[str]] = [
         "utils",
         "vertex_ids",
         "joint_names",
+        "vertex_joint_selector",
     },
     # consumers: they use the public API of the layers below and of each other, never internals
     {"keypoints", "fit", "motion", "export", "render", "view", "jobs", "measure", "join", "mesh_args", "cli_options"},

@@ -61,6 +61,7 @@ _LAZY_SUBMODULES = {
     "utils",
     "vertex_ids",
     "joint_names",
+    "vertex_joint_selector",
     "torch",
     "motion",
     "export",
