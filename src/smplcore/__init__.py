@@ -67,6 +67,7 @@ _LAZY_SUBMODULES = {
     "export",
     "render",
     "join",
+    "uv",
 }
 
 
