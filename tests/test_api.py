@@ -140,6 +140,28 @@ def test_unknown_keywords_warn_once_by_name(fake_models):
 # -- Everything else as smplx -------------------------------------------------------------------------
 
 
+def test_a_v_template_given_to_forward_is_used(fake_models):
+    """smplx's forward swallows ``v_template`` (its **kwargs); ours uses it for that call."""
+    root = fake_models["root"]
+    ref, ours = _quiet_smplx(str(root), model_type="smpl"), smplcore.create(root, model_type="smpl")
+    moved = ref.v_template + torch.tensor([0.0, 0.2, 0.0])
+    with torch.no_grad(), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert torch.equal(ref(v_template=moved).vertices, ref().vertices)  # ignored
+    with torch.no_grad():
+        shift = ours(v_template=moved).vertices - ours().vertices
+    torch.testing.assert_close(shift, torch.tensor([0.0, 0.2, 0.0]).expand_as(shift), atol=1e-5, rtol=0)
+
+
+def test_get_num_verts_with_one_template_per_body(fake_models):
+    """smplx answers the batch size for a (B, V, 3) ``v_template``; ours the vertices."""
+    root = fake_models["root"]
+    templates = _quiet_smplx(str(root), model_type="smpl").v_template.expand(4, -1, -1)
+    ref = _quiet_smplx(str(root), model_type="smpl", v_template=templates, batch_size=4)
+    ours = smplcore.create(root, model_type="smpl", v_template=templates, batch_size=4)
+    assert (ref.get_num_verts(), ours.get_num_verts()) == (4, 6890)
+
+
 def test_narrow_betas_and_expressions_are_zero_padded(smplx_model):
     betas = torch.randn(2, 4)
     expression = torch.randn(2, 3)

@@ -80,6 +80,9 @@ def test_install_as_smplx_registers_the_submodules():
         from smplx.lbs import lbs, blend_shapes, vertices2joints, batch_rodrigues, batch_rigid_transform
         from smplx.lbs import vertices2landmarks, find_dynamic_lmk_idx_and_bcoords
         from smplx.utils import to_tensor, to_np, Struct, SMPLXOutput
+        from smplx.vertex_joint_selector import VertexJointSelector
+        from smplx.body_models import VertexJointSelector as Selector, lbs as body_models_lbs, VERTEX_IDS
+        assert Selector is VertexJointSelector and smplx.vertex_joint_selector.VertexJointSelector is Selector
         assert smplx.SMPLX is smplcore.SMPLX and smplx.lbs.__name__ == "smplcore.smplx_compat.lbs"
         import smplcore.lbs
         assert smplcore.lbs is smplx.lbs

@@ -32,7 +32,10 @@ LAYERS: list[set[str]] = [
         "utils",
         "vertex_ids",
         "joint_names",
+        "vertex_joint_selector",
     },
+    # what every consumer shares, owned by none: mesh argument checks, UV maps and textures
+    {"mesh_args", "uv"},
     # consumers: they use the public API of the layers below and of each other, never internals
     {
         "keypoints",
@@ -45,23 +48,21 @@ LAYERS: list[set[str]] = [
         "measure",
         "join",
         "skeletons",
-        "mesh_args",
         "cli_options",
     },
     # applications
     {"cli", "cli_options", "demo", "__main__", "<root>"},
 ]
 FRONT_ENDS = {"model", "frontend", "numpy_model", "torch"}
-CONSUMERS = LAYERS[4]
-APPLICATIONS = LAYERS[5]
+SHARED = LAYERS[4]
+CONSUMERS = LAYERS[5]
+APPLICATIONS = LAYERS[6]
 
 # (importing module, imported module) pairs that break a rule today, and what removes them.
 KNOWN = {
     # the joint_regressors option loads keypoint regressors (issue 24: regressors through one public io entry)
     ("smplcore.frontend.setup", "smplcore.keypoints"),
-    # UV maps and parameter files live in export (issue 24: UVs where render, view and export all use them)
-    ("smplcore.render.offscreen", "smplcore.export.uv"),
-    ("smplcore.render.texture", "smplcore.export.uv"),
+    # parameter files are read by export (issue 24: one reader of parameter files below view and export)
     ("smplcore.view.sources", "smplcore.export.animation"),
     ("smplcore.export.inputs", "smplcore.motion.sequence"),
 }
@@ -166,7 +167,7 @@ def _reach_ins(tree: ast.AST) -> list[str]:
     return out
 
 
-@pytest.mark.parametrize("package", sorted(CONSUMERS | APPLICATIONS))
+@pytest.mark.parametrize("package", sorted(SHARED | CONSUMERS | APPLICATIONS))
 def test_consumers_read_the_rig_not_the_front_ends_setup(package):
     found = {module: hits for module, tree in _modules() if _package(module) == package and (hits := _reach_ins(tree))}
     assert not found, f"reach-ins into a front end's private setup (read model.rig instead): {found}"

@@ -159,3 +159,11 @@ def test_uv_grid_texture_layout():
     assert np.abs(left - right).sum() > 60
     top, bottom = img[20, 20].astype(float).mean(), img[236, 20].astype(float).mean()
     assert top > bottom
+
+
+def test_uv_maps_live_below_export_render_and_view_under_both_names():
+    """``smplcore.uv`` is the home (render and view use it without the exporters); the old name is the same module."""
+    import smplcore.export.uv as old_name
+    import smplcore.uv as home
+
+    assert old_name is home and home.model_uv is model_uv

@@ -61,11 +61,13 @@ _LAZY_SUBMODULES = {
     "utils",
     "vertex_ids",
     "joint_names",
+    "vertex_joint_selector",
     "torch",
     "motion",
     "export",
     "render",
     "join",
+    "uv",
 }
 
 

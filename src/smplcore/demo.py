@@ -141,9 +141,9 @@ def run_demo(
     age : the open model at this age in years (1-90; see docs/measure.md); None for the adult model.
     """
     from smplcore.export.mesh import save_mesh
-    from smplcore.export.uv import model_uv, resolve_texture
     from smplcore.io.locate import read_model
     from smplcore.numpy_model import BodyModel
+    from smplcore.uv import model_uv, resolve_texture
 
     if mesh_format not in ("obj", "ply"):
         raise ValueError(f"mesh_format: expected 'obj' or 'ply', got {mesh_format!r}")

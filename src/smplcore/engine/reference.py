@@ -26,9 +26,11 @@ from smplcore.engine.backend import eye, namespace
 
 
 def shape_blend(v_template: Any, shapedirs: Any, coeffs: Any) -> Any:
-    """(B, V, 3) ``v_template`` (V, 3) plus ``shapedirs`` (V, 3, K) times ``coeffs`` (B, K)."""
+    """(B, V, 3) ``v_template`` plus ``shapedirs`` (V, 3, K) times ``coeffs`` (B, K); the template is (V, 3), or
+    (B, V, 3) / (1, V, 3): one per body."""
     xp = namespace(coeffs)
-    return v_template[None] + xp.einsum("vdk,bk->bvd", shapedirs, coeffs)
+    template = v_template if v_template.ndim == 3 else v_template[None]
+    return template + xp.einsum("vdk,bk->bvd", shapedirs, coeffs)
 
 
 def regress_joints(J_regressor: Any, vertices: Any) -> Any:
@@ -234,7 +236,7 @@ def forward(
 
     Parameters
     ----------
-    v_template : (V, 3); shapedirs : (V, 3, K) shape (and expression) blend shapes;
+    v_template : (V, 3), or (B, V, 3) one per body; shapedirs : (V, 3, K) shape (and expression) blend shapes;
     posedirs : (9 (J - 1), 3 V) or None; J_regressor : (J, V); parents : (J,); weights : (V, J).
     coeffs : (B, K) shape (and expression) coefficients; rotmats : (B, J, 3, 3) local rotations.
     skinning : ``"lbs"`` (linear blend skinning) or ``"dqs"`` (dual-quaternion skinning).

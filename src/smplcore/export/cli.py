@@ -382,9 +382,9 @@ def _count(params: dict[str, Any]) -> int:
 def _write_mesh(
     args: argparse.Namespace, model: Any, source: Any, out: Path, save_mesh: Any, weight_colors: Any
 ) -> str:
-    from smplcore.export.uv import model_uv
     from smplcore.model.params import fit_width
     from smplcore.motion import Motion
+    from smplcore.uv import model_uv
 
     if isinstance(source, Motion):
         total = source.num_frames

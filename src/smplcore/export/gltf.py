@@ -63,7 +63,7 @@ from smplcore.export.gltf_buffer import (
     BufferBuilder,
 )
 from smplcore.export.soft_tissue import dmpl_joint_shift
-from smplcore.export.uv import TextureInput, encode_png, model_uv, resolve_texture, split_seams
+from smplcore.uv import TextureInput, encode_png, model_uv, resolve_texture, split_seams
 
 __all__ = ["save_glb"]
 
@@ -145,7 +145,7 @@ def save_glb(
         then holds more vertices than the model, each a copy of a model vertex with its position, normal,
         skin weights, colour and morph-target offsets.
     texture : optional base-colour texture for the UV map: an image file, an (H, W, 3|4) uint8 array or
-        ``"uv-grid"`` (:func:`smplcore.export.uv.uv_grid_texture`); embedded as PNG.
+        ``"uv-grid"`` (:func:`smplcore.uv.uv_grid_texture`); embedded as PNG.
     name : name of the animation (default: the input file's stem, or ``"motion"``).
     progress : called with numbers of frames processed (two passes: preparing, measuring the skin error;
         a third for models with pose correctives).

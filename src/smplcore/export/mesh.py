@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 
 from smplcore.errors import ShapeError as _ShapeError
-from smplcore.export.uv import TextureInput, check_uv_map, encode_png, resolve_texture
 from smplcore.mesh_args import as_array, check_faces, check_points
+from smplcore.uv import TextureInput, check_uv_map, encode_png, resolve_texture
 
 __all__ = ["SUPPORTED_SUFFIXES", "save_mesh", "weight_colors"]
 
@@ -74,10 +74,10 @@ def save_mesh(
         vertex_colors: optional (V, 3) or (V, 4) colours, floats in [0, 1] or uint8. PLY keeps
             them exactly (as uint8 RGBA); OBJ writes them as the common ``v x y z r g b`` extension.
         uv: optional UV map ``(vt, ft)``: ``vt`` (T, 2) texture coordinates (v up), ``ft`` (F, 3)
-            indices into ``vt`` per face corner (a model's, e.g. :func:`smplcore.export.uv.model_uv`).
+            indices into ``vt`` per face corner (a model's, e.g. :func:`smplcore.uv.model_uv`).
             OBJ only: written as ``vt`` lines and ``f v/vt`` faces.
         texture: optional image for the UV map (needs ``uv``, OBJ only): an image file, an
-            (H, W, 3|4) uint8 array or ``"uv-grid"`` (:func:`~smplcore.export.uv.uv_grid_texture`).
+            (H, W, 3|4) uint8 array or ``"uv-grid"`` (:func:`~smplcore.uv.uv_grid_texture`).
             Written as ``<stem>_texture.png`` beside the OBJ, with a ``<stem>.mtl`` whose ``map_Kd`` names it.
 
     Returns:
@@ -98,7 +98,7 @@ def save_mesh(
     tris = check_faces(faces, verts.shape[0])
     colors = None if vertex_colors is None else _check_vertex_colors(vertex_colors, verts.shape[0])
     if texture is not None and uv is None:
-        raise ValueError("texture: a texture needs a UV map; pass uv=(vt, ft), e.g. smplcore.export.uv.model_uv(model)")
+        raise ValueError("texture: a texture needs a UV map; pass uv=(vt, ft), e.g. smplcore.uv.model_uv(model)")
     if uv is not None:
         if suffix != ".obj":
             raise ValueError(f"uv: UV maps are written to .obj files only, got {str(out)!r}")

@@ -48,7 +48,7 @@ from smplcore.export.animation import (
     top_k_weights,
     truncation_error,
 )
-from smplcore.export.uv import TextureInput, encode_png, resolve_texture
+from smplcore.uv import TextureInput, encode_png, resolve_texture
 
 if TYPE_CHECKING:  # pragma: no cover
     from smplcore.model import Rig

@@ -185,7 +185,7 @@ def save_vrm(
 
     pygltflib = require("pygltflib", "save_vrm", "export")
     from smplcore.export.gltf import _float32_weights, _version, _vertex_normals
-    from smplcore.export.uv import encode_png, model_uv, resolve_texture, split_seams
+    from smplcore.uv import encode_png, model_uv, resolve_texture, split_seams
 
     path = _check_path(path, ".vrm")
     anim = _animation_of(model, source, None, progress)

@@ -101,6 +101,7 @@ def evaluate(
     kernel: str = "auto",
     check_finite: bool = True,
     check_rotations: bool = False,
+    template: Any = None,
 ) -> Evaluation:
     """Run the model.
 
@@ -118,8 +119,18 @@ def evaluate(
     check_finite : refuse NaN / inf inputs (naming the argument and the first bad index); skipped for
         non-CPU tensors and under tracing, where it would cost a device round trip.
     check_rotations : with ``rotation_matrices``, refuse matrices that are not rotations.
+    template : a rest template replacing the source's for this call: (V, 3), or (N, V, 3) one per body (the
+        call's batch is then N; parameters of batch 1 broadcast). Runs the reference kernel, which takes the
+        template as an input (the fast kernels hold theirs in their bases).
     """
     spec = setup.spec
+    if template is not None:
+        if kernel not in ("auto", "reference"):
+            raise ValueError(
+                f"kernel={kernel!r} cannot run a per-call or per-body v_template (its bases hold the model's one "
+                "template): it runs the reference kernel; pass kernel='auto' or 'reference'"
+            )
+        kernel = "reference"
     given = {k: v for k, v in params.items() if v is not None}
     if "dmpls" in given and not setup.num_dmpls:
         raise ValueError(
@@ -128,7 +139,10 @@ def evaluate(
         )
     ref = next(iter(given.values()), like)
     xp = namespace(ref)
-    batch = batch_of({k: (v if v.ndim > 1 else v[None]) for k, v in given.items()})
+    batched = {k: (v if v.ndim > 1 else v[None]) for k, v in given.items()}
+    if template is not None and template.ndim == 3:  # one template per body: a batch like a parameter's
+        batched["v_template"] = template
+    batch = batch_of(batched)
     if batch == 0:  # empty outputs of the right shapes: one zero body, then no rows of it
         ones = {k: v.sum(axis=0, keepdims=True) * 0 if v.ndim > 1 else v for k, v in given.items()}  # (1, ...) zeros
         return _empty(
@@ -141,10 +155,11 @@ def evaluate(
                 like=like,
                 kernel=kernel,
                 check_finite=False,
+                template=None if template is None else template[:1] if template.ndim == 3 else template,
             )
         )
     if check_finite and not (is_torch(ref) and (ref.device.type != "cpu" or traced())):
-        inputs.check_finite(given)
+        inputs.check_finite(given if template is None else {**given, "v_template": template})
     zeros = source.constant("zero", ref)  # (1, 1) in the model's dtype and device
     how: Plan = plan(
         kernel,
@@ -208,7 +223,7 @@ def evaluate(
     transl = given.get("transl")
     transl = None if transl is None else rows("transl", transl, batch, 3)
     if chosen == "reference":
-        verts, joints = _reference_forward(setup, source, coeffs, rotmats, zeros)
+        verts, joints = _reference_forward(setup, source, coeffs, rotmats, zeros, template)
     elif operators:
         verts, joints = _operator_forward(setup, source, coeffs, rotmats, vertices, transl, chosen == "autograd", zeros)
     else:
@@ -258,11 +273,15 @@ def _records(values: Any) -> bool:
     return bool(values) and records_gradients(*values)
 
 
-def _reference_forward(setup: ModelSetup, source: ArraySource, coeffs: Any, rotmats: Any, like: Any) -> tuple:
-    """Vertices (untranslated) and all output joints by the plain forward of :mod:`smplcore.engine.reference`."""
+def _reference_forward(
+    setup: ModelSetup, source: ArraySource, coeffs: Any, rotmats: Any, like: Any, template: Any = None
+) -> tuple:
+    """Vertices (untranslated) and all output joints by the plain forward of :mod:`smplcore.engine.reference`,
+    on the source's template or ``template`` ((V, 3), or (B, V, 3) one per body)."""
     p = source.plain_arrays()
+    template = p.v_template if template is None else template
     verts, joints, _ = reference.forward(
-        p.v_template, p.shapedirs, p.posedirs, p.J_regressor, p.parents, p.weights, coeffs, rotmats, setup.skinning
+        template, p.shapedirs, p.posedirs, p.J_regressor, p.parents, p.weights, coeffs, rotmats, setup.skinning
     )
     return verts, _with_mesh_keypoints(setup, source, joints, verts, rotmats, like)
 

@@ -176,9 +176,18 @@ class ModelSetup:
             elif age != "adult":
                 raise ValueError(f"age: expected 'adult', 'kid' or years (the open model), got {age!r}")
         if v_template is not None:
-            v_template = _template_array(v_template)
+            v_template = template_array(v_template)
             if v_template.shape != data.v_template.shape:
-                raise ShapeError(f"v_template: expected shape {data.v_template.shape}, got {v_template.shape}")
+                per_sample = v_template.ndim == 3 and v_template.shape[1:] == data.v_template.shape
+                raise ShapeError(
+                    f"v_template: expected shape {data.v_template.shape}, got {v_template.shape}"
+                    + (
+                        "; one template per body (B, V, 3) is taken by the torch classes "
+                        "(smplcore.create(..., v_template=templates, batch_size=B)), as in smplx"
+                        if per_sample
+                        else ""
+                    )
+                )
             data = data.replace(v_template=v_template)
         if not isinstance(age, str):  # years: the open model's age axis
             from smplcore.io.open_ages import at_age
@@ -333,7 +342,7 @@ def check_skinning(skinning: Any) -> str:
     return skinning
 
 
-def _template_array(value: Any) -> np.ndarray:
+def template_array(value: Any) -> np.ndarray:
     """The ``v_template`` option as a finite float64 array; errors name the option."""
     if hasattr(value, "detach"):
         value = value.detach().cpu().numpy()

@@ -247,10 +247,10 @@ def render_mesh(
             and no joints are given.
         smooth: smooth shading from vertex normals (True) or flat shading per face (False).
         uv: optional UV map ``(vt, ft)`` (T, 2) and (F, 3) of the mesh (a model's:
-            :func:`smplcore.export.uv.model_uv`), needed for ``texture``.
+            :func:`smplcore.uv.model_uv`), needed for ``texture``.
         texture: optional base-colour image drawn on every mesh through ``uv`` (``color`` is then not
             used): an image file, an (H, W, 3|4) uint8 array or ``"uv-grid"``
-            (:func:`smplcore.export.uv.uv_grid_texture`).
+            (:func:`smplcore.uv.uv_grid_texture`).
 
     Returns:
         np.ndarray of shape (height, width, 3), dtype uint8, first row at the top.
@@ -302,10 +302,10 @@ def render_mesh(
 
     split = image = None
     if texture is not None:
-        from smplcore.export.uv import resolve_texture, split_seams
+        from smplcore.uv import resolve_texture, split_seams
 
         if uv is None or not (isinstance(uv, (tuple, list)) and len(uv) == 2):
-            raise ValueError("uv: a texture needs the mesh's UV map, uv=(vt, ft) (e.g. smplcore.export.uv.model_uv)")
+            raise ValueError("uv: a texture needs the mesh's UV map, uv=(vt, ft) (e.g. smplcore.uv.model_uv)")
         split = split_seams(tris, uv[0], uv[1])
         image = resolve_texture(texture)
 

@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from smplcore.export.uv import SeamSplit
+from smplcore.uv import SeamSplit
 
 
 def smooth_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:

@@ -81,7 +81,8 @@ class ModuleArrays:
 
     def _build(self) -> engine.BodyArrays:
         m = self.module
-        ref = m.v_template
+        # one template per body (B, V, 3): the bases hold the first (a call with B > 1 runs the reference kernel)
+        ref = m.v_template if m.v_template.ndim == 2 else m.v_template[0]
         dirs = _blend_dirs(m)
         num_verts = ref.shape[0]
         # a float32/float64 CPU buffer as it is (no float64 copy): the basis only copies it (same values)
@@ -94,7 +95,7 @@ class ModuleArrays:
 
         with torch.inference_mode(False), torch.no_grad():
             return engine.BodyArrays.build(
-                _host(m.v_template),
+                _host(ref),
                 _host(dirs),
                 _host(m.J_regressor),
                 posedirs,

@@ -20,7 +20,8 @@ from smplcore.family.specs import OPEN as OPEN_SPEC
 from smplcore.family.specs import SMPLH as SMPLH_SPEC
 from smplcore.family.specs import SMPLX as SMPLX_SPEC
 from smplcore.torch.outputs import FLAMEOutput, MANOOutput, ModelOutput, SMPLHOutput, SMPLOutput, SMPLXOutput
-from smplcore.torch.smpl import SMPL, VertexJointSelector
+from smplcore.torch.selector import VertexJointSelector
+from smplcore.torch.smpl import SMPL
 
 __all__ = [
     "SMPL",
@@ -161,7 +162,10 @@ def _layer(cls: type, doc: str, **extra: Any) -> type:
 SMPLLayer = _layer(SMPL, "SMPL taking rotation matrices (B, J, 3, 3) and holding no parameters.")
 SMPLHLayer = _layer(SMPLH, "SMPL+H taking rotation matrices (B, J, 3, 3) and holding no parameters.")
 SMPLXLayer = _layer(
-    SMPLX, "SMPL-X taking rotation matrices (B, J, 3, 3) and holding no parameters.", OUTPUT_TRANSL=True
+    SMPLX,
+    "SMPL-X taking rotation matrices (B, J, 3, 3) and holding no parameters.",
+    OUTPUT_TRANSL=True,
+    FORWARD_ARGS=SMPLX.FORWARD_ARGS[:12],  # smplx's SMPLXLayer.forward has no pose2rot nor return_shaped
 )
 MANOLayer = _layer(MANO, "MANO taking rotation matrices (B, J, 3, 3); like smplx's, it holds only body_pose.")
 FLAMELayer = _layer(

@@ -15,7 +15,6 @@ from torch import nn
 from smplcore.engine import reference
 from smplcore.engine.kernels.select import check_kernel, traced
 from smplcore.errors import ShapeError
-from smplcore.family import names as family_names
 from smplcore.family.specs import SMPL as SMPL_SPEC
 from smplcore.family.specs import FamilySpec
 from smplcore.frontend import SETUP_OPTIONS, ModelSetup, evaluate
@@ -23,35 +22,19 @@ from smplcore.frontend.setup import hand_options_from_file
 from smplcore.io.model_data import ModelData
 from smplcore.model.rig import Rig, rig_of
 from smplcore.torch.arrays import ModuleArrays
+from smplcore.torch.buffers import hand_buffer, numpy_hand_components, register_buffers
 from smplcore.torch.keywords import split_keywords, warn_unknown
+from smplcore.torch.loading import has_hand_pca, load_data, per_body_templates
 from smplcore.torch.outputs import (
     Deferred,
     ModelOutput,
     SMPLOutput,
     lazy,
 )
+from smplcore.torch.selector import VertexJointSelector
+from smplcore.torch.signature import is_ours, mark, with_signature
 
 __all__ = ["SMPL", "VertexJointSelector"]
-
-
-class VertexJointSelector(nn.Module):
-    """smplx's ``vertex_joint_selector``: holds the ``extra_joints_idxs`` buffer (the vertices appended to the
-    joints) and appends them: ``selector(vertices, joints)`` is (B, J + n, 3)."""
-
-    extra_joints_idxs: torch.Tensor
-
-    def __init__(self, ids: list[int]) -> None:
-        super().__init__()
-        self.register_buffer("extra_joints_idxs", torch.tensor(ids, dtype=torch.long))
-
-    def forward(self, vertices: torch.Tensor, joints: torch.Tensor) -> torch.Tensor:
-        """(B, J + n, 3): (B, J, 3) ``joints`` followed by the n selected vertices of (B, V, 3) ``vertices``."""
-        if vertices.ndim != 3 or joints.ndim != 3 or vertices.shape[0] != joints.shape[0]:
-            raise ShapeError(
-                f"vertices, joints: expected (B, V, 3) and (B, J, 3), got {tuple(vertices.shape)} and "
-                f"{tuple(joints.shape)}"
-            )
-        return torch.cat([joints, vertices.index_select(1, self.extra_joints_idxs)], dim=1)
 
 
 class SMPL(nn.Module):
@@ -113,12 +96,13 @@ class SMPL(nn.Module):
         if not spec.hand_blocks:
             for option in ("use_pca", "num_pca_comps", "flat_hand_mean"):
                 setup_opts.pop(option, None)
-        data = _load(type(self), model_path, data_struct, data, gender, ext or self.DEFAULT_EXT, is_rhand)
+        data = load_data(type(self), model_path, data_struct, data, gender, ext or self.DEFAULT_EXT, is_rhand)
         if uv_path is not None:  # SMPL distributes its UV map as a separate .obj
             from smplcore.io.uv import attach_uv
 
             data = attach_uv(data, uv_path)
-        if self.LAYER and "use_pca" not in setup_opts and not _has_hand_pca(data):
+        templates = per_body_templates(setup_opts, data)  # (B, V, 3) v_template: one per body, as smplx keeps it
+        if self.LAYER and "use_pca" not in setup_opts and not has_hand_pca(data):
             setup_opts["use_pca"] = False  # a Layer never reads PCA hands; smplx still registers the bases
         setup_opts.update(hand_options_from_file(data, setup_opts))  # AMASS's .npz: no hand PCA, no mean
         self.setup = setup = ModelSetup.build(data, owner=name, **setup_opts)
@@ -136,12 +120,14 @@ class SMPL(nn.Module):
                 setup.num_pca_comps,
                 setup.flat_hand_mean,
             )
-            self._set_numpy_hand_components(data, int(setup_opts.get("num_pca_comps", SETUP_OPTIONS["num_pca_comps"])))
+            comps = int(setup_opts.get("num_pca_comps", SETUP_OPTIONS["num_pca_comps"]))
+            for attribute, value in numpy_hand_components(self.SPEC, data, comps).items():
+                setattr(self, attribute, value)
         if spec.landmarks:
             self.use_face_contour = setup.use_face_contour
         self.faces = np.asarray(data.faces).astype(data.faces_dtype)
         self.parent_list = tuple(int(p) for p in data.parents)
-        self._register_buffers(setup, dtype)
+        register_buffers(self, setup, dtype, templates, use_hands=setup_opts.get("use_hands", True))
         self.source = ModuleArrays(self)
         self.source.fast_arrays()  # built now, as the buffers are (not in the first forward's time and memory)
         for param in self.PARAMETERS:
@@ -150,74 +136,7 @@ class SMPL(nn.Module):
 
     # -- construction -------------------------------------------------------------------------------
 
-    def _register_buffers(self, setup: ModelSetup, dtype: torch.dtype) -> None:
-        d = setup.data
-
-        def as_float(a: Any) -> torch.Tensor:
-            return torch.tensor(np.asarray(a), dtype=dtype)
-
-        # smplx's order of registration (named_buffers(), state_dict()): the SMPL arrays, the hands, then for
-        # FLAME the expression basis before the landmarks, for SMPL-X after them
-        self.register_buffer("shapedirs", as_float(setup.shapedirs))
-        self.register_buffer("faces_tensor", torch.tensor(np.asarray(d.faces), dtype=torch.long))
-        self.register_buffer("v_template", as_float(d.v_template))
-        self.register_buffer("J_regressor", as_float(d.J_regressor))
-        num_posedirs = 9 * (d.num_joints - 1)
-        posedirs = (
-            np.zeros((num_posedirs, 3 * d.num_vertices))
-            if d.posedirs is None
-            else np.asarray(d.posedirs).reshape(-1, d.posedirs.shape[-1]).T
-        )
-        self.register_buffer("posedirs", as_float(posedirs))
-        self.register_buffer("parents", torch.tensor(np.asarray(d.parents), dtype=torch.long))
-        self.register_buffer("lbs_weights", as_float(d.weights))
-        if setup.dmpldirs is not None:  # dmpl_path= only (human_body_prior's name): smplx's state_dict otherwise
-            self.register_buffer("dmpldirs", as_float(setup.dmpldirs))
-        extra = (
-            list(family_names.VERTEX_IDS_MANO.values())
-            if self.SPEC.model_type == "mano"
-            else list(setup.extra_joint_ids)
-        )
-        self.vertex_joint_selector = VertexJointSelector(extra)
-        for block, comps in setup.hand_components.items():
-            self.register_buffer(self.hand_buffer(block, "components"), as_float(comps))
-        for block, mean in setup.hand_means.items():
-            self.register_buffer(self.hand_buffer(block, "mean"), as_float(mean))
-        if setup.hand_means:
-            self.register_buffer("pose_mean", as_float(setup.pose_mean))
-        expression_first = self.SPEC.has_expression and not self.SPEC.hand_blocks  # FLAME
-        if expression_first:
-            self.register_buffer("expr_dirs", as_float(setup.exprdirs))
-        if self.SPEC.landmarks:
-            self.register_buffer("lmk_faces_idx", torch.tensor(d.lmk_faces_idx, dtype=torch.long))
-            self.register_buffer("lmk_bary_coords", as_float(d.lmk_bary_coords))
-            if setup.use_face_contour:
-                self.register_buffer("dynamic_lmk_faces_idx", torch.tensor(d.dynamic_lmk_faces_idx, dtype=torch.long))
-                self.register_buffer("dynamic_lmk_bary_coords", as_float(d.dynamic_lmk_bary_coords))
-                self.register_buffer("neck_kin_chain", torch.as_tensor(setup.neck_chain, dtype=torch.long))
-        if self.SPEC.has_expression and not expression_first:
-            self.register_buffer("expr_dirs", as_float(setup.exprdirs))
-        if setup.regressor is not None:  # joint_regressors: not smplx's, so not in the state_dict
-            self.register_buffer(
-                "_regressor_ids", torch.as_tensor(setup.regressor.vertex_ids, dtype=torch.long), persistent=False
-            )
-            self.register_buffer("_regressor_weights", as_float(setup.regressor.weights), persistent=False)
-
-    def _set_numpy_hand_components(self, data: ModelData, num_pca_comps: int) -> None:
-        """smplx's ``np_left_hand_components`` / ``np_right_hand_components`` (``np_hand_components`` for MANO):
-        the file's first ``num_pca_comps`` PCA components of each hand, whether or not PCA is used."""
-        for block in self.SPEC.hand_blocks:
-            side = data.gender if block.hand == "self" else block.hand
-            comps = getattr(data, f"hands_components_{side}")
-            if comps is None:
-                continue
-            name = "np_hand_components" if block.hand == "self" else f"np_{side}_hand_components"
-            setattr(self, name, np.asarray(comps)[:num_pca_comps])
-
-    @staticmethod
-    def hand_buffer(block: str, kind: str) -> str:
-        """smplx's buffer names: ``left_hand_components``, ``right_hand_mean``, ``hand_mean``, ..."""
-        return block.replace("_pose", "") + "_" + kind
+    hand_buffer = staticmethod(hand_buffer)
 
     def _parameter_width(self, name: str) -> int:
         if name == "betas":
@@ -242,6 +161,12 @@ class SMPL(nn.Module):
     @property
     def rig(self) -> Rig:
         """The model's public facts with its options applied (:class:`smplcore.model.Rig`), built on first use."""
+        if self.v_template.ndim == 3 and self.v_template.shape[0] > 1:
+            raise ValueError(
+                f"rig: this model holds {self.v_template.shape[0]} templates (v_template of shape "
+                f"{tuple(self.v_template.shape)}, one per body) and a Rig describes one body; make a model with one "
+                "of them (smplcore.create(..., v_template=templates[i])) for fitting, export or measuring"
+            )
         return rig_of(self.setup)
 
     @property
@@ -254,6 +179,16 @@ class SMPL(nn.Module):
     @property
     def num_betas(self) -> int:
         return self.setup.num_betas
+
+    @property
+    def _num_betas(self) -> int:  # smplx's private name, read by some of its clients
+        return self.setup.num_betas
+
+    @property
+    def _num_expression_coeffs(self) -> int:  # smplx's private name (SMPL-X and FLAME only)
+        if not self.SPEC.has_expression:
+            raise AttributeError(f"{type(self).__name__} has no expression coefficients")
+        return self.setup.num_expression_coeffs
 
     @property
     def num_expression_coeffs(self) -> int:
@@ -273,7 +208,8 @@ class SMPL(nn.Module):
         return self.SPEC.display_name
 
     def get_num_verts(self) -> int:
-        return int(self.v_template.shape[0])
+        """Vertices of the mesh (smplx answers the batch size for a per-body (B, V, 3) ``v_template``)."""
+        return int(self.v_template.shape[-2])
 
     def get_num_faces(self) -> int:
         return int(self.faces.shape[0])
@@ -348,13 +284,16 @@ class SMPL(nn.Module):
             raise TypeError(f"{name}: expected a tensor or array of numbers ({exc})") from None
 
     def forward(self, *args: Any, **kwargs: Any) -> ModelOutput:
-        """Pose the model; the keywords (and positional order) are smplx's for this class.
+        """Pose the model; the parameters (and their positional order) are smplx's for this class, as
+        ``inspect.signature(model.forward)`` lists them.
 
         Pose blocks left out use the module's parameters (none for Layer classes: zero rotation);
         a parameter of batch 1 broadcasts to the batch of the others; batch 0 gives empty outputs.
         smplcore's keywords: ``kernel=`` forces a kernel for this call (see :mod:`smplcore.engine.kernels`),
         ``check_finite=False`` skips the NaN / inf check of the inputs (on by default, CPU only),
-        ``check_rotations=True`` checks that rotation-matrix inputs are rotations.
+        ``check_rotations=True`` checks that rotation-matrix inputs are rotations (None: the model's
+        settings); ``dmpls`` (B, n) DMPL coefficients (models made with ``dmpl_path``); ``v_template`` a rest
+        template for this call, (V, 3) or (B, V, 3) one per body (runs the reference kernel).
         """
         if len(args) > len(self.FORWARD_ARGS):
             raise TypeError(
@@ -369,9 +308,12 @@ class SMPL(nn.Module):
         return_full_pose = bool(kwargs.pop("return_full_pose", False))
         pose2rot = bool(kwargs.pop("pose2rot", True)) and not self.LAYER
         return_shaped = bool(kwargs.pop("return_shaped", True))
-        kernel = kwargs.pop("kernel", self.kernel)
-        finite = bool(kwargs.pop("check_finite", self.check_finite))
-        rotations = bool(kwargs.pop("check_rotations", self.check_rotations))
+        kernel = kwargs.pop("kernel", None)
+        kernel = self.kernel if kernel is None else kernel
+        finite, rotations = kwargs.pop("check_finite", None), kwargs.pop("check_rotations", None)
+        finite = self.check_finite if finite is None else bool(finite)
+        rotations = self.check_rotations if rotations is None else bool(rotations)
+        template = self._call_template(kwargs.pop("v_template", None))
         names = [b.name for b in self.SPEC.pose_blocks] + ["betas", "transl"]
         names += ["expression"] if self.SPEC.has_expression else []
         names += ["dmpls"]  # (B, n) DMPL coefficients; an error without dmpl_path
@@ -388,6 +330,7 @@ class SMPL(nn.Module):
             kernel=kernel,
             check_finite=finite,
             check_rotations=rotations,
+            template=template,
         )
         vertices, joints = out.vertices, out.untranslated_joints
         if self.joint_mapper is not None:
@@ -424,6 +367,29 @@ class SMPL(nn.Module):
         return output(**{k: v for k, v in fields.items() if k in known})
 
     OUTPUT_TRANSL = False
+
+    def _call_template(self, value: Any) -> torch.Tensor | None:
+        """The template a call runs on, for :func:`evaluate`: ``value`` given to the forward ((V, 3) or
+        (B, V, 3), checked), else the module's own when it holds one per body, else None (the model's)."""
+        if value is None:
+            own = self.v_template
+            return own if own.ndim == 3 and own.shape[0] > 1 else None
+        template = self._as_tensor("v_template", value)
+        assert template is not None
+        num_verts = self.get_num_verts()
+        if template.ndim not in (2, 3) or tuple(template.shape[-2:]) != (num_verts, 3) or 0 in template.shape:
+            raise ShapeError(
+                f"v_template: expected shape ({num_verts}, 3) or (B, {num_verts}, 3) (one template per body), "
+                f"got {tuple(template.shape)}"
+            )
+        return template
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """Each class's ``forward`` shows smplx's parameters of that class (``inspect.signature``); a subclass
+        that defines its own forward (as SPIN's does) keeps it."""
+        super().__init_subclass__(**kwargs)
+        if "forward" not in cls.__dict__ and is_ours(cls.forward):
+            cls.forward = with_signature(cls, SMPL.forward)  # type: ignore[method-assign]
 
     @staticmethod
     def _in_current_grad_mode(fn: Callable[[], torch.Tensor]) -> Callable[[], torch.Tensor]:
@@ -468,28 +434,4 @@ class SMPL(nn.Module):
         return params
 
 
-def _load(
-    cls: type[SMPL], model_path: Any, data_struct: Any, data: ModelData | None, gender: str, ext: str, is_rhand: bool
-) -> ModelData:
-    """The model's data: given, from smplx's ``data_struct``, or from the file or folder."""
-    from smplcore.io.locate import read_model
-    from smplcore.io.model_files import from_official_arrays
-
-    spec = cls.SPEC
-    if data is None and data_struct is not None:
-        data = from_official_arrays(
-            Path(f"<data_struct for {cls.__name__}>"), dict(vars(data_struct)), spec.model_type, gender
-        )
-    if data is None:
-        data = read_model(model_path, spec.model_type, gender=gender, ext=ext, is_rhand=is_rhand)
-    if data.model_type != spec.model_type:
-        raise ValueError(
-            f"{cls.__name__} cannot run a {data.model_type!r} model from {data.source}; "
-            f"use smplcore.create() to pick the class from the file"
-        )
-    return data
-
-
-def _has_hand_pca(data: ModelData) -> bool:
-    sides = {"left", "right"} if data.model_type != "mano" else {data.gender}
-    return all(getattr(data, f"hands_components_{side}", None) is not None for side in sides)
+mark(SMPL, SMPL.forward)

@@ -50,7 +50,7 @@ from smplcore.export.fbx.objects import (
 from smplcore.export.gltf import _version, _vertex_normals
 from smplcore.export.mesh import _check_vertex_colors
 from smplcore.export.soft_tissue import dmpl_joint_shift
-from smplcore.export.uv import TextureInput, encode_png, resolve_texture
+from smplcore.uv import TextureInput, encode_png, resolve_texture
 
 __all__ = ["save_fbx", "ROTATION_ORDERS"]
 
