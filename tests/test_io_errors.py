@@ -192,6 +192,41 @@ def test_a_flipped_byte_in_a_compressed_member_names_the_member(mano_arrays, tmp
         load_model(path)
 
 
+@pytest.mark.parametrize("where", ["header padding", "data", "last byte"])
+def test_a_changed_byte_in_a_stored_member_is_a_crc_error(mano_arrays, tmp_path, where):
+    """Stored members are read straight from the file into the array; their CRC-32 is still checked."""
+    path = tmp_path / "MANO_RIGHT.npz"
+    np.savez(path, **mano_arrays)
+    data = bytearray(path.read_bytes())
+    with zipfile.ZipFile(path) as archive:
+        info = archive.getinfo("shapedirs.npy")
+    name_length, extra_length = struct.unpack("<HH", data[info.header_offset + 26 : info.header_offset + 30])
+    start = info.header_offset + 30 + name_length + extra_length  # the member's first byte
+    if where == "header padding":  # a space before the .npy header's newline becomes a tab: still a valid header
+        offset = data.index(b"\n", start) - 1
+        assert data[offset] == ord(" ")
+        data[offset] = ord("\t")
+    else:
+        data[start + (info.file_size // 2 if where == "data" else info.file_size - 1)] ^= 0x01
+    path.write_bytes(bytes(data))
+    with pytest.raises(
+        ModelFileError, match=r"\[key 'shapedirs'\]: truncated or corrupt file \(BadZipFile: Bad CRC-32"
+    ):
+        load_model(path)
+
+
+def test_stored_members_read_in_fortran_order_and_with_bytes_after_the_array(mano_arrays, tmp_path):
+    """A Fortran-order array and a member with bytes after its array (CRC over all of them) read as written."""
+    arrays = dict(mano_arrays, shapedirs=np.asfortranarray(mano_arrays["shapedirs"]))
+    members = _zip_members(arrays, method=0)
+    target = next(m for m in members if m["name"] == "J_regressor.npy")
+    target["data"] += b"\0" * 7
+    path = H.write_zip(tmp_path / "MANO_RIGHT.npz", members)
+    data = load_model(path)
+    np.testing.assert_array_equal(data.shapedirs, mano_arrays["shapedirs"])
+    np.testing.assert_array_equal(np.asarray(data.J_regressor), mano_arrays["J_regressor"])
+
+
 ZIP_CASES = {
     "encrypted member": (dict(flags=1), r"\[key 'v_template'\]: the member is encrypted"),
     "bzip2 member": (dict(method=12), r"\[key 'v_template'\]: the member uses zip compression method 12"),

@@ -10,7 +10,7 @@ posed vertices and joints:
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -41,7 +41,13 @@ def regress(regressor: np.ndarray, values: np.ndarray) -> np.ndarray:
 
 def _stacked(parts: list[np.ndarray], width: int, convert: Callable[[np.ndarray], Any]) -> Any:
     """``convert(np.concatenate([p.reshape(-1, width) for p in parts]))`` without the float64 copies: each (strided)
-    part is copied once, cast on the way, into the converted array (the same values: a copy and one rounding)."""
+    part is copied once, cast on the way, into the converted array (the same values: a copy and one rounding).
+
+    Where the products with it are packed (:func:`gemm.available`: float32 on a CPU with oneDNN), a torch result
+    is the transpose of a contiguous (width, rows) matrix: each column's values are contiguous, the layout
+    :func:`gemm.pack` takes without a transposed copy, and the pose correctives (stored one vertex coordinate's
+    column at a time) are copied in contiguous runs. Elsewhere the products read it as it is: row-major, where a
+    product with one body runs fastest."""
     like = convert(np.zeros((1, 1)))
     rows = sum(p.shape[0] for p in parts)
     if is_torch(like):
@@ -49,7 +55,9 @@ def _stacked(parts: list[np.ndarray], width: int, convert: Callable[[np.ndarray]
 
         import torch
 
-        out = torch.empty((rows, width), dtype=like.dtype, device=like.device)
+        # on the CPU in NumPy's memory (huge pages), first touched here
+        packed = gemm.available(like)
+        out = blocked.empty((width, rows), like).T if packed else blocked.empty((rows, width), like)
         start = 0
         for p in parts:
             with warnings.catch_warnings():  # read-only model arrays: only read here
@@ -158,7 +166,20 @@ class BodyArrays:
 
     def vertex_blocks(self, size: int) -> tuple[blocked.VertexBlock, ...]:
         """The mesh cut into blocks of ``size`` vertices for :func:`blocked.posed_vertices` (cached)."""
-        return self.derived(("blocks", size), lambda: blocked.vertex_blocks(self.weights_t, size, self.blend_basis))
+        return self.derived(("blocks", size), lambda: self._vertex_blocks(size))
+
+    def _vertex_blocks(self, size: int) -> tuple[blocked.VertexBlock, ...]:
+        if size < self.weights_t.shape[1]:
+            return blocked.vertex_blocks(self.weights_t, size, self.blend_basis)
+        # one block of the whole mesh: its columns of the basis are all of them, in order, so the basis is packed
+        # as it is (the same packed matrix as a gathered copy of its columns, without that 3 V-column copy)
+        (block,) = blocked.vertex_blocks(self.weights_t, size)
+        packed = self._packed_basis()
+        return (block if packed is None else replace(block, packed_blend=packed),)
+
+    def _packed_basis(self) -> Any:
+        """The whole blend basis packed by :func:`gemm.pack` (None where it does not pack), once."""
+        return self.derived("packed basis", lambda: gemm.pack(self.blend_basis))
 
     def vertex_subset(self, ids: np.ndarray) -> tuple[Any, Any, tuple[blocked.VertexBlock, ...]]:
         """Basis columns, weights and one vertex block for the vertices ``ids`` only (cached)."""
@@ -187,7 +208,7 @@ class BodyArrays:
         None where :mod:`~smplcore.engine.gemm` does not pack."""
         if not gemm.available(self.blend_basis):
             return None
-        return self.derived("packed blend", lambda: (gemm.pack(self.blend_basis), gemm.pack(self.blend_basis.T)))
+        return self._packed_basis(), self.derived("packed basis t", lambda: gemm.pack(self.blend_basis.T))
 
     def map(self, fn: Callable[[Any], Any]) -> BodyArrays:
         """The same arrays with ``fn`` applied to each (e.g. a dtype or device change)."""

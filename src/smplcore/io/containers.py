@@ -12,9 +12,10 @@ import io
 import os
 import stat
 import zipfile
+import zlib
 from collections.abc import Iterator, Mapping
 from pathlib import Path
-from typing import IO, Any, BinaryIO
+from typing import IO, Any, BinaryIO, cast
 
 import numpy as np
 
@@ -26,6 +27,7 @@ _ZIP_MAGIC = b"PK\x03\x04"
 _NPY_MAGIC = b"\x93NUMPY"
 _HEADER_DTYPE_KINDS = "biufcSU"
 _CHUNK = 16 << 20
+_CRC_PIECE = 256 << 10  # a stored member is read (and its CRC-32 computed) in pieces that stay in the cache
 
 
 def open_regular(path: Path, expected: str = "a model file") -> tuple[BinaryIO, int]:
@@ -184,16 +186,67 @@ def _read_npy(fh: BinaryIO) -> np.ndarray | Any:
     return read_npy(fh, LoadBudget("<.npy data>", size), size)
 
 
-def _read_exactly(fh: IO[bytes], nbytes: int) -> bytearray:
-    """``nbytes`` bytes of ``fh``, read in chunks straight into one buffer (no second full-size copy)."""
-    out = bytearray(nbytes)
-    view, got = memoryview(out), 0
+def _read_exactly(fh: IO[bytes], nbytes: int) -> np.ndarray:
+    """``nbytes`` bytes of ``fh``, read in chunks straight into one buffer (no second full-size copy; the
+    buffer is not zero-filled first: every byte is written by the read)."""
+    out = np.empty(nbytes, dtype=np.uint8)
+    view, got = out.data, 0
     while got < nbytes:
         count = fh.readinto(view[got : got + min(nbytes - got, _CHUNK)])  # type: ignore[attr-defined]
         if not count:
             raise EOFError(f"expected {nbytes} bytes of array data, found {got}")
         got += count
     return out
+
+
+def _read_stored(fh: BinaryIO, start: int, info: zipfile.ZipInfo, budget: LoadBudget) -> np.ndarray | Any:
+    """The .npy array of a stored (uncompressed) ``.npz`` member whose bytes begin at ``start`` in ``fh``
+    (``zipfile`` has checked its local header): read from the file straight into the array's buffer, its CRC-32
+    checked as ``zipfile`` checks it (computed piece by piece while each piece is in the cache; no chunk copies)."""
+    fh.seek(start)
+    member = _StoredMember(fh, info.file_size)
+    value = read_npy(cast(IO[bytes], member), budget, info.file_size)
+    while member.read(_CRC_PIECE):  # bytes after the array, if any
+        pass
+    if member.crc != info.CRC:
+        raise zipfile.BadZipFile(f"Bad CRC-32 for file {info.filename!r}")
+    return value
+
+
+class _StoredMember:
+    """The ``size`` bytes of a stored zip member from the current position of ``fh``, never more, with the
+    CRC-32 of what was read so far."""
+
+    def __init__(self, fh: BinaryIO, size: int) -> None:
+        self.fh, self.left, self.crc, self._start = fh, size, 0, fh.tell()
+
+    def tell(self) -> int:
+        return self.fh.tell() - self._start
+
+    def read(self, n: int | None = -1) -> bytes:
+        n = self.left if n is None or n < 0 else min(n, self.left)
+        data = self.fh.read(n)
+        self.left -= len(data)
+        self.crc = zlib.crc32(data, self.crc)
+        return data
+
+    def readline(self, limit: int = -1) -> bytes:
+        line = self.fh.readline(self.left if limit < 0 else min(limit, self.left))
+        self.left -= len(line)
+        self.crc = zlib.crc32(line, self.crc)
+        return line
+
+    def readinto(self, buffer: Any) -> int:
+        view = memoryview(buffer).cast("B")[: self.left]
+        got = 0
+        while got < len(view):
+            count = self.fh.readinto(view[got : got + _CRC_PIECE])  # type: ignore[attr-defined]
+            if not count:
+                break
+            self.crc = zlib.crc32(view[got : got + count], self.crc)
+            got += count
+        self.left -= got
+        return got
 
 
 class LazyNpz(Mapping):
@@ -267,6 +320,9 @@ class LazyNpz(Mapping):
                 raise ModelFileError(self.path, "a stored member's sizes disagree", key=key)
             fh, _ = open_regular(self.path)
             with fh, zipfile.ZipFile(fh) as archive, archive.open(info) as member:
+                start = getattr(member, "_orig_compress_start", None)  # where the member's bytes begin
+                if info.compress_type == zipfile.ZIP_STORED and isinstance(start, int):
+                    return _read_stored(fh, start, info, self.budget)
                 return read_npy(member, self.budget, info.file_size)
         except ModelFileError:
             raise
