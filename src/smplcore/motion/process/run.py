@@ -255,7 +255,7 @@ def _run_locked(
             pass
         else:
             used = run_files(todo, options, workers, ray_address, on_result, tick, _stopping(summary))
-            if ray_address is not None:
+            if ray_address is not None and used is not None:
                 summary.workers = used
         status = "finished"
         if summary.stopped:
